@@ -1,0 +1,184 @@
+"""The 22-joint SMPL-X body skeleton, forward kinematics and rotation maths (all torch, batched).
+
+Numbers come from ``shared/reference/smplx_body22.json`` (NEUTRAL SMPL-X, betas = 0, rest pose),
+converted to Blender's Z-up world with x' = x, y' = -z, z' = y. In that frame the rest body faces -Y
+and its left side is at +X. Only derived skeleton numbers are stored here, never SMPL-X model data.
+
+Conventions used everywhere in the package:
+- quaternions are (w, x, y, z);
+- the 6D rotation form is the first two *columns* of the matrix, concatenated (c0, c1);
+- a pose is 22 local rotation matrices (index 0 = global orientation) plus the pelvis world position.
+"""
+from __future__ import annotations
+
+import torch
+
+JOINT_NAMES: tuple[str, ...] = (
+    "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2",
+    "left_ankle", "right_ankle", "spine3", "left_foot", "right_foot", "neck", "left_collar",
+    "right_collar", "head", "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
+    "left_wrist", "right_wrist",
+)
+NUM_JOINTS = 22
+PARENTS: tuple[int, ...] = (-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19)
+JOINT_INDEX = {name: i for i, name in enumerate(JOINT_NAMES)}
+
+# Rest joint positions, Z-up metres (reference file's `rest_zup`). The pelvis is not at the origin.
+REST_JOINTS_ZUP: tuple[tuple[float, float, float], ...] = (
+    (0.003123, -0.012037, -0.351407), (0.061313, 0.013965, -0.444171),
+    (-0.060144, 0.009214, -0.455315), (0.000361, 0.015581, -0.241517),
+    (0.116008, 0.023361, -0.822924), (-0.104354, 0.026038, -0.817696),
+    (0.009808, 0.021521, -0.109664), (0.072555, 0.055237, -1.225984),
+    (-0.088937, 0.046230, -1.228423), (-0.001522, -0.006926, -0.057428),
+    (0.119812, -0.062980, -1.283981), (-0.127750, -0.072819, -1.286752),
+    (-0.013687, 0.024690, 0.107739), (0.044842, 0.000295, 0.027515),
+    (-0.049217, 0.006474, 0.026910), (0.011097, 0.003952, 0.268190),
+    (0.164081, 0.015756, 0.085243), (-0.151795, 0.019143, 0.080435),
+    (0.418204, 0.058214, 0.013093), (-0.422944, 0.045610, 0.043942),
+    (0.670191, 0.060687, 0.036314), (-0.672212, 0.060935, 0.039410),
+)
+# The foot joints sit above the sole; this lifts a standing rest body so its soles touch z = 0.
+SOLE_BELOW_FOOT_JOINT = 0.02
+LEFT_HIP, RIGHT_HIP = JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]
+FOOT_JOINTS = (JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"],
+               JOINT_INDEX["left_foot"], JOINT_INDEX["right_foot"])
+
+
+def rest_joints(dtype: torch.dtype = torch.float32) -> torch.Tensor:
+    """(22, 3) rest joints with the pelvis at the origin."""
+    j = torch.tensor(REST_JOINTS_ZUP, dtype=dtype)
+    return j - j[0]
+
+
+def rest_offsets(dtype: torch.dtype = torch.float32) -> torch.Tensor:
+    """(22, 3) bone vectors joint - parent in the rest pose (row 0 is zero)."""
+    j = torch.tensor(REST_JOINTS_ZUP, dtype=dtype)
+    off = torch.zeros_like(j)
+    for i, p in enumerate(PARENTS):
+        if p >= 0:
+            off[i] = j[i] - j[p]
+    return off
+
+
+def standing_pelvis_height() -> float:
+    """Pelvis height above the floor for the rest body standing upright."""
+    j = torch.tensor(REST_JOINTS_ZUP)
+    return float(j[0, 2] - j[list(FOOT_JOINTS), 2].min()) + SOLE_BELOW_FOOT_JOINT
+
+
+_OFFSETS = rest_offsets()
+
+
+def forward_kinematics(local_rot: torch.Tensor, pelvis: torch.Tensor,
+                       offsets: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """Batched FK.
+
+    local_rot: (..., 22, 3, 3) local rotations (index 0 = global orientation);
+    pelvis: (..., 3) world pelvis position; offsets: (22, 3) or (..., 22, 3) bone vectors.
+    Returns (joints (..., 22, 3), global rotations (..., 22, 3, 3)).
+    """
+    off = (_OFFSETS if offsets is None else offsets).to(local_rot)
+    glob = [local_rot[..., 0, :, :]]
+    pos = [pelvis]
+    for i in range(1, NUM_JOINTS):
+        p = PARENTS[i]
+        glob.append(glob[p] @ local_rot[..., i, :, :])
+        pos.append(pos[p] + (glob[p] @ off[..., i, :].unsqueeze(-1)).squeeze(-1))
+    return torch.stack(pos, dim=-2), torch.stack(glob, dim=-3)
+
+
+def global_to_local(global_rot: torch.Tensor) -> torch.Tensor:
+    """(..., 22, 3, 3) global rotations -> local rotations."""
+    loc = [global_rot[..., 0, :, :]]
+    for i in range(1, NUM_JOINTS):
+        loc.append(global_rot[..., PARENTS[i], :, :].transpose(-1, -2) @ global_rot[..., i, :, :])
+    return torch.stack(loc, dim=-3)
+
+
+# ----------------------------------------------------------------------------- rotation maths
+
+def rot6d_to_matrix(d6: torch.Tensor) -> torch.Tensor:
+    """(..., 6) -> (..., 3, 3) by Gram-Schmidt; the 6D form holds the first two columns."""
+    a1, a2 = d6[..., :3], d6[..., 3:]
+    b1 = torch.nn.functional.normalize(a1, dim=-1)
+    b2 = torch.nn.functional.normalize(a2 - (b1 * a2).sum(-1, keepdim=True) * b1, dim=-1)
+    b3 = torch.cross(b1, b2, dim=-1)
+    return torch.stack((b1, b2, b3), dim=-1)
+
+
+def matrix_to_rot6d(m: torch.Tensor) -> torch.Tensor:
+    """(..., 3, 3) -> (..., 6): first column then second column."""
+    return torch.cat((m[..., :, 0], m[..., :, 1]), dim=-1)
+
+
+def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:
+    """(..., 4) w-first quaternion (normalised here) -> (..., 3, 3)."""
+    q = torch.nn.functional.normalize(q, dim=-1)
+    w, x, y, z = q.unbind(-1)
+    m = torch.stack((
+        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+    ), dim=-1)
+    return m.reshape(q.shape[:-1] + (3, 3))
+
+
+def matrix_to_quat(m: torch.Tensor) -> torch.Tensor:
+    """(..., 3, 3) -> (..., 4) w-first unit quaternion with w >= 0 (numerically stable branch pick)."""
+    m00, m11, m22 = m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]
+    cands = torch.stack((
+        1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22,
+    ), dim=-1)
+    best = cands.argmax(dim=-1, keepdim=True)
+    s = torch.sqrt(cands.clamp_min(1e-12))  # s = 4 * |component| / 2
+    r21, r12 = m[..., 2, 1], m[..., 1, 2]
+    r02, r20 = m[..., 0, 2], m[..., 2, 0]
+    r10, r01 = m[..., 1, 0], m[..., 0, 1]
+    q_w = torch.stack((s[..., 0], (r21 - r12) / s[..., 0], (r02 - r20) / s[..., 0], (r10 - r01) / s[..., 0]), -1)
+    q_x = torch.stack(((r21 - r12) / s[..., 1], s[..., 1], (r01 + r10) / s[..., 1], (r02 + r20) / s[..., 1]), -1)
+    q_y = torch.stack(((r02 - r20) / s[..., 2], (r01 + r10) / s[..., 2], s[..., 2], (r12 + r21) / s[..., 2]), -1)
+    q_z = torch.stack(((r10 - r01) / s[..., 3], (r02 + r20) / s[..., 3], (r12 + r21) / s[..., 3], s[..., 3]), -1)
+    allq = torch.stack((q_w, q_x, q_y, q_z), dim=-2) * 0.5
+    q = torch.gather(allq, -2, best.unsqueeze(-1).expand(best.shape[:-1] + (1, 4))).squeeze(-2)
+    q = torch.nn.functional.normalize(q, dim=-1)
+    return torch.where(q[..., :1] < 0, -q, q)
+
+
+def axis_angle_to_matrix(aa: torch.Tensor) -> torch.Tensor:
+    """(..., 3) rotation vector -> (..., 3, 3) (Rodrigues)."""
+    angle = aa.norm(dim=-1, keepdim=True)
+    half = 0.5 * angle
+    small = angle < 1e-8
+    scale = torch.where(small, 0.5 - angle * angle / 48.0, torch.sin(half) / angle.clamp_min(1e-12))
+    q = torch.cat((torch.cos(half), aa * scale), dim=-1)
+    return quat_to_matrix(q)
+
+
+def matrix_to_axis_angle(m: torch.Tensor) -> torch.Tensor:
+    """(..., 3, 3) -> (..., 3) rotation vector."""
+    q = matrix_to_quat(m)
+    xyz = q[..., 1:]
+    sin_half = xyz.norm(dim=-1, keepdim=True)
+    angle = 2 * torch.atan2(sin_half, q[..., :1])
+    return xyz * torch.where(sin_half < 1e-8, 2.0 + 0 * angle, angle / sin_half.clamp_min(1e-12))
+
+
+def yaw_matrix(yaw: torch.Tensor) -> torch.Tensor:
+    """(...,) angle about +Z (radians, counter-clockwise seen from above) -> (..., 3, 3)."""
+    c, s = torch.cos(yaw), torch.sin(yaw)
+    z, o = torch.zeros_like(yaw), torch.ones_like(yaw)
+    return torch.stack((c, -s, z, s, c, z, z, z, o), dim=-1).reshape(yaw.shape + (3, 3))
+
+
+def quat_slerp(q0: torch.Tensor, q1: torch.Tensor, t: torch.Tensor | float) -> torch.Tensor:
+    """Spherical interpolation of w-first quaternions (..., 4), shortest arc."""
+    t = torch.as_tensor(t, dtype=q0.dtype)
+    dot = (q0 * q1).sum(-1, keepdim=True)
+    q1 = torch.where(dot < 0, -q1, q1)
+    dot = dot.abs().clamp(max=1.0)
+    theta = torch.acos(dot)
+    sin_t = torch.sin(theta)
+    near = sin_t < 1e-6
+    w0 = torch.where(near, 1 - t, torch.sin((1 - t) * theta) / sin_t.clamp_min(1e-12))
+    w1 = torch.where(near, t, torch.sin(t * theta) / sin_t.clamp_min(1e-12))
+    return torch.nn.functional.normalize(w0 * q0 + w1 * q1, dim=-1)
