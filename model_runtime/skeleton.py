@@ -69,6 +69,17 @@ def standing_pelvis_height() -> float:
 _OFFSETS = rest_offsets()
 
 
+def _levels() -> list[list[int]]:
+    """Joints grouped by depth in the tree, so FK runs one batched step per level (8) not per joint (21)."""
+    depth = [0] * NUM_JOINTS
+    for i in range(1, NUM_JOINTS):
+        depth[i] = depth[PARENTS[i]] + 1
+    return [[i for i in range(NUM_JOINTS) if depth[i] == d] for d in range(1, max(depth) + 1)]
+
+
+_LEVELS = [(torch.tensor(lv), torch.tensor([PARENTS[i] for i in lv])) for lv in _levels()]
+
+
 def forward_kinematics(local_rot: torch.Tensor, pelvis: torch.Tensor,
                        offsets: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """Batched FK.
@@ -78,13 +89,15 @@ def forward_kinematics(local_rot: torch.Tensor, pelvis: torch.Tensor,
     Returns (joints (..., 22, 3), global rotations (..., 22, 3, 3)).
     """
     off = (_OFFSETS if offsets is None else offsets).to(local_rot)
-    glob = [local_rot[..., 0, :, :]]
-    pos = [pelvis]
-    for i in range(1, NUM_JOINTS):
-        p = PARENTS[i]
-        glob.append(glob[p] @ local_rot[..., i, :, :])
-        pos.append(pos[p] + (glob[p] @ off[..., i, :].unsqueeze(-1)).squeeze(-1))
-    return torch.stack(pos, dim=-2), torch.stack(glob, dim=-3)
+    glob = torch.empty_like(local_rot)
+    pos = torch.empty(local_rot.shape[:-2] + (3,), dtype=local_rot.dtype, device=local_rot.device)
+    glob[..., 0, :, :] = local_rot[..., 0, :, :]
+    pos[..., 0, :] = pelvis
+    for idx, par in _LEVELS:
+        gp = glob[..., par, :, :]
+        glob[..., idx, :, :] = gp @ local_rot[..., idx, :, :]
+        pos[..., idx, :] = pos[..., par, :] + (gp @ off[..., idx, :].unsqueeze(-1)).squeeze(-1)
+    return pos, glob
 
 
 def global_to_local(global_rot: torch.Tensor) -> torch.Tensor:

@@ -1,0 +1,102 @@
+"""Saving and loading models.
+
+A model file is a plain dict of primitives and tensors written with `torch.save` and read with
+`torch.load(..., weights_only=True)`, so no code from a file is ever executed:
+    {"format": "remogen", "format_version": 1, "config": {...}, "state_dict": {...}, "meta": {...}}
+"""
+from __future__ import annotations
+
+import os
+import zipfile
+from pathlib import Path
+
+import torch
+
+from .config import ModelConfig, resolve_config
+from .errors import ModelFileError
+from .model import ReMoGenModel
+
+FORMAT = "remogen"
+FORMAT_VERSION = 1
+DEFAULT_WEIGHTS = Path(__file__).resolve().parent / "weights" / "default.pt"
+
+
+def save_model(model: ReMoGenModel, path: str | os.PathLike, meta: dict | None = None) -> Path:
+    """Write atomically (temp file + rename) so an interrupted save never leaves a truncated model."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {
+        "format": FORMAT, "format_version": FORMAT_VERSION, "config": model.cfg.to_dict(),
+        "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()},
+        "meta": dict(model.meta, **(meta or {})),
+    }
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    torch.save(payload, tmp)
+    os.replace(tmp, path)
+    return path
+
+
+def _read_payload(path: Path) -> dict:
+    if not path.exists():
+        raise ModelFileError(f"model file {path} not found; check the path or pass "
+                             "load_model(config='default') for an untrained model")
+    if path.is_dir():
+        raise ModelFileError(f"{path} is a folder; pass the path of a .pt model file")
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except (zipfile.BadZipFile, EOFError, RuntimeError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ModelFileError(f"{path} is truncated or not a PyTorch file ({first}); "
+                             "re-download or re-train the model") from None
+    except Exception as exc:  # weights_only refuses pickled code: a foreign or unsafe file
+        raise ModelFileError(f"{path} is not a ReMoGen model file (it cannot be loaded safely: "
+                             f"{type(exc).__name__}); use a file written by model_runtime") from None
+    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
+        raise ModelFileError(f"{path} is not a ReMoGen model file (no 'remogen' format marker); "
+                             "use a file written by model_runtime")
+    version = payload.get("format_version")
+    if not isinstance(version, int) or version > FORMAT_VERSION:
+        raise ModelFileError(f"{path} has model format version {version}, this runtime reads up to "
+                             f"{FORMAT_VERSION}; update model_runtime")
+    return payload
+
+
+def load_model(path: str | os.PathLike | None = None, *, config: "str | ModelConfig | None" = None,
+               seed: int = 0, device: str = "cpu") -> ReMoGenModel:
+    """Load a model file, or build a randomly initialised model from a config.
+
+    load_model()                  -> the shipped default weights
+    load_model("my.pt")           -> that file
+    load_model(config="default")  -> random weights of that preset ("tiny", "default", "paper")
+    """
+    if config is not None and path is not None:
+        raise ModelFileError("pass either a model file path or config=..., not both")
+    if config is not None:
+        return _random_model(resolve_config(config), seed).to(device).eval()
+    p = Path(path) if path is not None else DEFAULT_WEIGHTS
+    if path is None and not p.exists():
+        raise ModelFileError(f"no shipped weights at {p}; train them (python -m model_runtime.train) "
+                             "or pass load_model(config='default') for an untrained model")
+    payload = _read_payload(p)
+    cfg = ModelConfig.from_dict(payload["config"])
+    model = ReMoGenModel(cfg)
+    try:
+        model.load_state_dict(payload["state_dict"], strict=True)
+    except RuntimeError as exc:
+        first = str(exc).strip().splitlines()[0]
+        raise ModelFileError(f"{p} does not match its own config ({first[:160]}); the file is damaged "
+                             "or from another version") from None
+    model.meta = dict(payload.get("meta") or {})
+    return model.to(device).eval()
+
+
+def _random_model(cfg: ModelConfig, seed: int) -> ReMoGenModel:
+    with torch.random.fork_rng():
+        torch.manual_seed(seed)
+        model = ReMoGenModel(cfg)
+        model.eval()
+        hist = torch.randn(4, cfg.history, cfg.feature_dim)
+        z = torch.randn(4, cfg.latent_tokens, cfg.latent_dim)
+        model.compute_decoder_sensitivity(hist, z)
+    model.meta = {"trained": False, "note": "random weights"}
+    return model

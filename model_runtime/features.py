@@ -1,0 +1,152 @@
+"""The 276-D per-frame motion features (DART layout), canonicalisation and normalisation.
+
+Layout of one frame (all in the segment's canonical frame, see DESIGN.md section 4):
+
+| slice        | size   | what                                             |
+|--------------|--------|--------------------------------------------------|
+| ROOT_T       | 3      | pelvis position                                  |
+| ROT6D        | 22 x 6 | global orientation + 21 local rotations, 6D      |
+| ROOT_T_DELTA | 3      | pelvis translation to the next frame             |
+| ROOT_R_DELTA | 6      | R_next @ R_this^T of the global orientation, 6D  |
+| JOINTS       | 22 x 3 | joint positions                                  |
+| JOINT_DELTA  | 22 x 3 | joint displacement to the next frame             |
+
+A rigid change of frame (yaw about +Z plus a translation) acts on the slices in closed form
+(`rigid_transform`), so history can be moved from one segment's canonical frame to the next exactly.
+"""
+from __future__ import annotations
+
+import torch
+
+from .skeleton import (LEFT_HIP, NUM_JOINTS, RIGHT_HIP, forward_kinematics, matrix_to_rot6d,
+                       rot6d_to_matrix)
+
+FEATURE_DIM = 276
+ROOT_T = slice(0, 3)
+ROT6D = slice(3, 135)
+ROOT_T_DELTA = slice(135, 138)
+ROOT_R_DELTA = slice(138, 144)
+JOINTS = slice(144, 210)
+JOINT_DELTA = slice(210, 276)
+
+
+def features_from_pose(local_rot: torch.Tensor, pelvis: torch.Tensor,
+                       joints: torch.Tensor | None = None) -> torch.Tensor:
+    """Frames (..., T+1) of a pose sequence -> features (..., T, 276).
+
+    local_rot (..., T+1, 22, 3, 3), pelvis (..., T+1, 3). The extra last frame only supplies the deltas.
+    """
+    if joints is None:
+        joints, _ = forward_kinematics(local_rot, pelvis)
+    cur, nxt = slice(None, -1), slice(1, None)
+    go = local_rot[..., :, 0, :, :]
+    rot_delta = go[..., nxt, :, :] @ go[..., cur, :, :].transpose(-1, -2)
+    lead = local_rot.shape[:-4]
+    t = local_rot.shape[-4] - 1
+    return torch.cat((
+        pelvis[..., cur, :],
+        matrix_to_rot6d(local_rot[..., cur, :, :, :]).reshape(lead + (t, NUM_JOINTS * 6)),
+        pelvis[..., nxt, :] - pelvis[..., cur, :],
+        matrix_to_rot6d(rot_delta),
+        joints[..., cur, :, :].reshape(lead + (t, NUM_JOINTS * 3)),
+        (joints[..., nxt, :, :] - joints[..., cur, :, :]).reshape(lead + (t, NUM_JOINTS * 3)),
+    ), dim=-1)
+
+
+def features_to_pose(feat: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """(..., 276) -> (local rotations (..., 22, 3, 3), pelvis (..., 3)). Joints come from FK of these."""
+    rot = rot6d_to_matrix(feat[..., ROT6D].reshape(feat.shape[:-1] + (NUM_JOINTS, 6)))
+    return rot, feat[..., ROOT_T]
+
+
+def feature_joints(feat: torch.Tensor) -> torch.Tensor:
+    """(..., 276) -> the joint-position slice as (..., 22, 3)."""
+    return feat[..., JOINTS].reshape(feat.shape[:-1] + (NUM_JOINTS, 3))
+
+
+def rigid_transform(feat: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
+    """Express features in another frame: x' = rot @ x + trans for points, rot @ v for vectors.
+
+    rot (..., 3, 3), trans (..., 3) broadcast over the frame axis of feat (..., T, 276).
+    Local joint rotations do not change; the global orientation and its delta do.
+    """
+    r = rot.unsqueeze(-3)  # (..., 1, 3, 3) broadcasts over T
+    tr = trans.unsqueeze(-2)
+    lead = feat.shape[:-1]
+
+    def pts(x: torch.Tensor, n: int) -> torch.Tensor:
+        return (x.reshape(lead + (n, 3)) @ r.transpose(-1, -2)).reshape(lead + (n * 3,))
+
+    root_t = (feat[..., ROOT_T].unsqueeze(-2) @ r.transpose(-1, -2)).squeeze(-2) + tr
+    rots6 = feat[..., ROT6D].reshape(lead + (NUM_JOINTS, 6))
+    go = rot6d_to_matrix(rots6[..., 0, :])
+    go_new = matrix_to_rot6d(r @ go)
+    rots6 = torch.cat((go_new.unsqueeze(-2), rots6[..., 1:, :]), dim=-2).reshape(lead + (NUM_JOINTS * 6,))
+    root_td = (feat[..., ROOT_T_DELTA].unsqueeze(-2) @ r.transpose(-1, -2)).squeeze(-2)
+    rd = rot6d_to_matrix(feat[..., ROOT_R_DELTA])
+    rd_new = matrix_to_rot6d(r @ rd @ r.transpose(-1, -2))
+    joints = pts(feat[..., JOINTS], NUM_JOINTS) + tr.repeat((1,) * (tr.dim() - 1) + (NUM_JOINTS,))
+    jd = pts(feat[..., JOINT_DELTA], NUM_JOINTS)
+    return torch.cat((root_t, rots6, root_td, rd_new, joints, jd), dim=-1)
+
+
+def canonical_frame(joints: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Canonical frame of one pose: joints (..., 22, 3) in world.
+
+    Returns (rot, trans) mapping canonical -> world: x_world = rot @ x_can + trans. Origin: the pelvis
+    projected on the floor (z = 0); +X from the left hip to the right hip (horizontal); +Z up; +Y = forward.
+    """
+    across = joints[..., RIGHT_HIP, :] - joints[..., LEFT_HIP, :]
+    x = torch.stack((across[..., 0], across[..., 1], torch.zeros_like(across[..., 0])), dim=-1)
+    x = torch.nn.functional.normalize(x, dim=-1, eps=1e-8)
+    z = torch.zeros_like(x)
+    z[..., 2] = 1.0
+    y = torch.cross(z, x, dim=-1)
+    rot = torch.stack((x, y, z), dim=-1)
+    trans = joints[..., 0, :].clone()
+    trans[..., 2] = 0.0
+    return rot, trans
+
+
+def to_canonical(feat_world: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
+    """World-frame features -> features in the frame (rot, trans) (canonical -> world)."""
+    rt = rot.transpose(-1, -2)
+    return rigid_transform(feat_world, rt, -(rt @ trans.unsqueeze(-1)).squeeze(-1))
+
+
+def to_world(feat_can: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
+    """Canonical features -> world-frame features."""
+    return rigid_transform(feat_can, rot, trans)
+
+
+def canonicalize(feat_world: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Canonicalise a segment (..., T, 276) on its first frame. Returns (features, rot, trans)."""
+    rot, trans = canonical_frame(feature_joints(feat_world[..., 0, :]))
+    return to_canonical(feat_world, rot, trans), rot, trans
+
+
+def world_points_to_canonical(points: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
+    """(..., N, 3) world points -> canonical frame (rot/trans broadcast over N)."""
+    return (points - trans.unsqueeze(-2)) @ rot
+
+
+class FeatureStats(torch.nn.Module):
+    """Per-channel mean/std, computed once on the prior's training data and stored in the checkpoint."""
+
+    def __init__(self, dim: int = FEATURE_DIM) -> None:
+        super().__init__()
+        self.register_buffer("mean", torch.zeros(dim))
+        self.register_buffer("std", torch.ones(dim))
+
+    @torch.no_grad()
+    def fit(self, feats: torch.Tensor, min_std: float = 1e-2) -> None:
+        """feats (N, D): set mean/std; tiny stds are floored so constant channels do not explode."""
+        flat = feats.reshape(-1, feats.shape[-1]).double()
+        self.mean.copy_(flat.mean(0).float())
+        self.std.copy_(flat.std(0).clamp_min(min_std).float())
+
+    def normalize(self, x: torch.Tensor) -> torch.Tensor:
+        return (x - self.mean) / self.std
+
+    def denormalize(self, x: torch.Tensor) -> torch.Tensor:
+        return x * self.std + self.mean

@@ -1,0 +1,185 @@
+"""ReMoGenModel: the networks of one checkpoint and the operations the session and training use."""
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from .config import ModelConfig
+from .diffusion import CosineSchedule
+from .features import FeatureStats
+from .nets.denoiser import LatentDenoiser
+from .nets.fwsr import FrameRefiner
+from .nets.interaction import MetaInteractionModule, OthersEncoder, SceneEncoder, compose_residuals
+from .nets.vae import MotionVAE
+from .text import TextEncoder, build_text_encoder
+
+MODULE_NAMES = ("hhi", "hsi")
+
+
+class Contexts:
+    """Encoded interaction context of one segment: per module (tokens, mask or None).
+
+    Caches what stays constant over the segment's denoising steps: the batch-repeated copies for
+    classifier-free guidance and each block's cross-attention keys/values.
+    """
+
+    def __init__(self, items: dict[str, tuple[torch.Tensor, torch.Tensor | None]]) -> None:
+        self.items = items
+        self._repeats: dict[int, Contexts] = {1: self}
+        self._kv: dict[tuple[str, int], tuple[torch.Tensor, torch.Tensor]] = {}
+
+    def repeat(self, n: int) -> "Contexts":
+        if n not in self._repeats:
+            self._repeats[n] = Contexts({k: (t.repeat(n, 1, 1), None if m is None else m.repeat(n, 1))
+                                         for k, (t, m) in self.items.items()})
+        return self._repeats[n]
+
+    def kv(self, name: str, layer: int, block) -> tuple[torch.Tensor, torch.Tensor]:
+        key = (name, layer)
+        if key not in self._kv:
+            self._kv[key] = block.cross.context_kv(self.items[name][0])
+        return self._kv[key]
+
+
+class ReMoGenModel(nn.Module):
+    fps = 10
+
+    def __init__(self, cfg: ModelConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        self.stats = FeatureStats(cfg.feature_dim)
+        self.vae = MotionVAE(cfg)
+        self.denoiser = LatentDenoiser(cfg)
+        d, dc = cfg.den_dim, cfg.mim_dim
+        self.mims = nn.ModuleDict({
+            "hhi": MetaInteractionModule(OthersEncoder(cfg.partner_window, dc), cfg.inject_layers, d, dc,
+                                         cfg.mim_heads, cfg.rel_omega, cfg.dropout, cfg.mim_ff_mult),
+            "hsi": MetaInteractionModule(SceneEncoder(cfg.voxel_resolution, cfg.voxel_patch, dc, cfg.mim_heads,
+                                                      cfg.scene_layers, cfg.dropout),
+                                         cfg.inject_layers, d, dc, cfg.mim_heads, cfg.rel_omega, cfg.dropout,
+                                         cfg.mim_ff_mult),
+        })
+        self.fwsr = FrameRefiner(cfg)
+        self.schedule = CosineSchedule(cfg.diffusion_steps)
+        self.text_encoder: TextEncoder = build_text_encoder(cfg.text)
+        self.meta: dict = {}
+
+    # ------------------------------------------------------------------ conditioning
+    def encode_text(self, text: str) -> torch.Tensor:
+        return self.text_encoder.encode([text])
+
+    def encode_contexts(self, partner: torch.Tensor | None, present: torch.Tensor | None,
+                        occupancy: torch.Tensor | None, goal: torch.Tensor | None,
+                        active: dict[str, float]) -> Contexts:
+        """Encode only what the active (alpha != 0) modules need; absent cues switch a module off."""
+        items: dict[str, tuple[torch.Tensor, torch.Tensor | None]] = {}
+        if active.get("hhi", 0.0) != 0.0 and partner is not None and present is not None and bool(present.any()):
+            items["hhi"] = (self.mims["hhi"].encoder(partner, present), present)
+        if active.get("hsi", 0.0) != 0.0 and (occupancy is not None or goal is not None):
+            b = (occupancy if occupancy is not None else goal).shape[0]
+            r = self.cfg.voxel_resolution
+            occ = occupancy if occupancy is not None else torch.zeros(b, r, r, r)
+            g = goal if goal is not None else torch.zeros(b, 3)
+            has = torch.full((b,), goal is not None)
+            items["hsi"] = (self.mims["hsi"].encoder(occ, g, has), None)
+        return Contexts(items)
+
+    # ------------------------------------------------------------------ denoising
+    def predict_x0(self, z_t: torch.Tensor, t: int, hist: torch.Tensor, text_emb: torch.Tensor,
+                   contexts: Contexts, alpha: dict[str, float], guidance: float) -> torch.Tensor:
+        """x0 with classifier-free guidance: conditional and unconditional passes as one batch."""
+        b = z_t.shape[0]
+        use_cfg = guidance != 1.0
+        n = 2 if use_cfg else 1
+        drop = torch.zeros(n * b, dtype=torch.bool)
+        if use_cfg:
+            drop[b:] = True
+        text_tok = self.denoiser.text_tokens(text_emb.expand(b, -1).repeat(n, 1), drop)
+        ctx = contexts.repeat(n) if use_cfg else contexts
+        names = [k for k in MODULE_NAMES if k in ctx.items and alpha.get(k, 0.0) != 0.0]
+
+        def inject(layer: int, h: torch.Tensor) -> torch.Tensor | None:
+            deltas, weights = [], []
+            for k in names:
+                block = self.mims[k].block_at(layer)
+                if block is not None:
+                    tok, mask = ctx.items[k]
+                    deltas.append(block(h, tok, mask, ctx.kv(k, layer, block)))
+                    weights.append(alpha[k])
+            return compose_residuals(deltas, weights)
+
+        tt = torch.full((n * b,), t, dtype=torch.long)
+        x0 = self.denoiser(z_t.repeat(n, 1, 1), tt, hist.repeat(n, 1, 1), text_tok, inject if names else None)
+        if not use_cfg:
+            return x0
+        cond, uncond = x0[:b], x0[b:]
+        return uncond + guidance * (cond - uncond)
+
+    def sample_latent(self, hist: torch.Tensor, text_emb: torch.Tensor, contexts: Contexts,
+                      alpha: dict[str, float], guidance: float, generator: torch.Generator) -> torch.Tensor:
+        """Full reverse diffusion for one segment (all steps at once)."""
+        job = DiffusionJob(self, hist, text_emb, contexts, alpha, guidance, generator)
+        job.advance(self.cfg.diffusion_steps)
+        return job.result
+
+    # ------------------------------------------------------------------ decoding / refinement
+    def decode(self, hist: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
+        return self.vae.decode(hist, z)
+
+    def refine(self, z0: torch.Tensor, hist: torch.Tensor, partner: torch.Tensor, present: torch.Tensor,
+               frame: int) -> torch.Tensor:
+        return self.fwsr(z0, hist, partner, present, torch.full((z0.shape[0],), frame, dtype=torch.long))
+
+    @torch.no_grad()
+    def compute_decoder_sensitivity(self, hist: torch.Tensor, z: torch.Tensor, eps: float = 1e-2) -> torch.Tensor:
+        """Finite-difference sensitivity of the decoder per latent entry, averaged over samples.
+
+        s_d = mean_b || D(h_b, z_b + eps e_d) - D(h_b, z_b) || / eps, rescaled to mean 1 so beta keeps
+        one meaning across checkpoints. Stored in the FWSR buffer (computed once per checkpoint).
+        """
+        was_training = self.training
+        self.eval()
+        n, lt, dz = z.shape
+        base = self.decode(hist, z)
+        sens = torch.zeros(lt * dz)
+        eye = torch.eye(lt * dz).reshape(lt * dz, lt, dz) * eps
+        for i in range(n):
+            zp = z[i:i + 1] + eye
+            out = self.decode(hist[i:i + 1].expand(lt * dz, -1, -1), zp)
+            sens += (out - base[i:i + 1]).flatten(1).norm(dim=1) / eps
+        sens = sens / n
+        sens = sens / sens.mean().clamp_min(1e-12)
+        self.fwsr.sensitivity.copy_(sens.reshape(lt, dz))
+        self.train(was_training)
+        return self.fwsr.sensitivity
+
+
+class DiffusionJob:
+    """The reverse diffusion of one segment as a resumable object, so its steps can be spread over frames."""
+
+    def __init__(self, model: ReMoGenModel, hist: torch.Tensor, text_emb: torch.Tensor, contexts: Contexts,
+                 alpha: dict[str, float], guidance: float, generator: torch.Generator) -> None:
+        self.model, self.hist, self.text_emb, self.contexts = model, hist, text_emb, contexts
+        self.alpha, self.guidance, self.gen = dict(alpha), float(guidance), generator
+        cfg = model.cfg
+        shape = (hist.shape[0], cfg.latent_tokens, cfg.latent_dim)
+        self.z = torch.randn(shape, generator=generator)
+        self.t = cfg.diffusion_steps - 1
+        self.result: torch.Tensor | None = None
+
+    @property
+    def done(self) -> bool:
+        return self.result is not None
+
+    def advance(self, steps: int) -> None:
+        for _ in range(steps):
+            if self.done:
+                return
+            x0 = self.model.predict_x0(self.z, self.t, self.hist, self.text_emb, self.contexts,
+                                       self.alpha, self.guidance)
+            if self.t == 0:
+                self.result = x0
+            else:
+                noise = torch.randn(self.z.shape, generator=self.gen)
+                self.z = self.model.schedule.step(self.z, self.t, x0, noise)
+                self.t -= 1

@@ -1,0 +1,70 @@
+"""Small building blocks shared by the networks."""
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import nn
+
+
+def encoder_layer(d: int, heads: int, ff: int, dropout: float) -> nn.TransformerEncoderLayer:
+    """Pre-norm transformer layer; PyTorch's fused inference fast path applies to it in eval mode."""
+    return nn.TransformerEncoderLayer(d, heads, ff, dropout=dropout, activation="gelu",
+                                      batch_first=True, norm_first=True)
+
+
+def sinusoidal_embedding(t: torch.Tensor, dim: int) -> torch.Tensor:
+    """(B,) step indices -> (B, dim) sinusoidal features."""
+    half = dim // 2
+    freqs = torch.exp(-math.log(10000.0) * torch.arange(half, dtype=torch.float32) / half)
+    ang = t.float().unsqueeze(-1) * freqs
+    return torch.cat((torch.sin(ang), torch.cos(ang)), dim=-1)
+
+
+class RelativeBiasCrossAttention(nn.Module):
+    """Cross-attention whose logits get a bias b_ij = W_b [sin(w (i - j)), cos(w (i - j))] per head.
+
+    The bias is added to the scaled logits (a re-parametrisation of the paper's (QK^T + B) / sqrt(d):
+    W_b absorbs the scale). It depends only on the token counts, so it is cached per (T, Tc).
+    """
+
+    def __init__(self, d_query: int, d_context: int, d_attn: int, heads: int, omega: float = 0.25) -> None:
+        super().__init__()
+        self.heads, self.omega = heads, omega
+        self.q = nn.Linear(d_query, d_attn)
+        self.k = nn.Linear(d_context, d_attn)
+        self.v = nn.Linear(d_context, d_attn)
+        self.bias_proj = nn.Linear(2, heads)
+        self._rel_cache: dict[tuple, torch.Tensor] = {}
+
+    def _bias(self, t: int, tc: int) -> torch.Tensor:
+        """(1, heads, t, tc) relative bias; cached outside autograd (keyed on the weights' version)."""
+        if torch.is_grad_enabled():
+            return self._compute_bias(t, tc)
+        key = (t, tc, self.bias_proj.weight._version, self.bias_proj.bias._version)
+        if key not in self._rel_cache:
+            self._rel_cache = {key: self._compute_bias(t, tc)}
+        return self._rel_cache[key]
+
+    def _compute_bias(self, t: int, tc: int) -> torch.Tensor:
+        dt = (torch.arange(t).unsqueeze(1) - torch.arange(tc).unsqueeze(0)).float() * self.omega
+        rel = torch.stack((torch.sin(dt), torch.cos(dt)), dim=-1)
+        return self.bias_proj(rel).permute(2, 0, 1).unsqueeze(0)
+
+    def context_kv(self, ctx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Keys and values of the context; constant over a segment's denoising steps, so callers cache them."""
+        b, tc, _ = ctx.shape
+        k = self.k(ctx).view(b, tc, self.heads, -1).transpose(1, 2)
+        v = self.v(ctx).view(b, tc, self.heads, -1).transpose(1, 2)
+        return k, v
+
+    def forward(self, x: torch.Tensor, ctx: torch.Tensor | None = None, ctx_mask: torch.Tensor | None = None,
+                kv: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
+        b, t, _ = x.shape
+        k, v = kv if kv is not None else self.context_kv(ctx)
+        q = self.q(x).view(b, t, self.heads, -1).transpose(1, 2)
+        bias = self._bias(t, k.shape[2])
+        if ctx_mask is not None:  # (B, tc) True = valid token
+            bias = bias + torch.where(ctx_mask, 0.0, -1e4)[:, None, None, :]
+        out = nn.functional.scaled_dot_product_attention(q, k, v, attn_mask=bias)
+        return out.transpose(1, 2).reshape(b, t, -1)

@@ -1,0 +1,53 @@
+"""Latent denoiser G(z_t, t, history, text) -> x0, with hooks where Meta-Interaction residuals enter."""
+from __future__ import annotations
+
+from typing import Callable
+
+import torch
+from torch import nn
+
+from .common import encoder_layer, sinusoidal_embedding
+
+# inject(layer_index, hidden (B, T, d)) -> residual to add, or None
+InjectFn = Callable[[int, torch.Tensor], "torch.Tensor | None"]
+
+
+class LatentDenoiser(nn.Module):
+    """Tokens: [step, text, history (H), z_t (L)] -> x0 prediction read at the z tokens."""
+
+    def __init__(self, cfg) -> None:
+        super().__init__()
+        d = cfg.den_dim
+        self.lt, self.h = cfg.latent_tokens, cfg.history
+        self.time_mlp = nn.Sequential(nn.Linear(d, d), nn.GELU(), nn.Linear(d, d))
+        self.text_proj = nn.Linear(cfg.text_dim, d)
+        self.null_text = nn.Parameter(torch.zeros(d))  # the "no text" token used by CFG
+        self.hist_proj = nn.Linear(cfg.feature_dim, d)
+        self.z_proj = nn.Linear(cfg.latent_dim, d)
+        self.pos = nn.Parameter(torch.randn(2 + self.h + self.lt, d) * 0.02)
+        self.layers = nn.ModuleList(encoder_layer(d, cfg.den_heads, cfg.den_ff, cfg.dropout)
+                                    for _ in range(cfg.den_layers))
+        self.norm = nn.LayerNorm(d)
+        self.out = nn.Linear(d, cfg.latent_dim)
+        self.d = d
+
+    @property
+    def num_tokens(self) -> int:
+        return 2 + self.h + self.lt
+
+    def text_tokens(self, text_emb: torch.Tensor, drop: torch.Tensor) -> torch.Tensor:
+        """(B, text_dim) and a (B,) bool 'use the null token' mask -> (B, 1, d)."""
+        tok = self.text_proj(text_emb)
+        return torch.where(drop.unsqueeze(-1), self.null_text.expand_as(tok), tok).unsqueeze(1)
+
+    def forward(self, z_t: torch.Tensor, t: torch.Tensor, hist: torch.Tensor, text_tok: torch.Tensor,
+                inject: InjectFn | None = None) -> torch.Tensor:
+        temb = self.time_mlp(sinusoidal_embedding(t, self.d)).unsqueeze(1)
+        x = torch.cat((temb, text_tok, self.hist_proj(hist), self.z_proj(z_t)), 1) + self.pos
+        for i, layer in enumerate(self.layers):
+            x = layer(x)
+            if inject is not None:
+                delta = inject(i, x)
+                if delta is not None:
+                    x = x + delta
+        return self.out(self.norm(x[:, -self.lt:]))

@@ -1,0 +1,132 @@
+"""Meta-Interaction Modules: context encoders, Meta-Interaction blocks, and their composition.
+
+A module = one context encoder (partner TCN or scene ViT) + one block per injection layer of the
+denoiser. A block returns the residual Delta = h_ffn - h (paper supplement, "Meta-Interaction Block");
+`compose_residuals` sums alpha_i * Delta_i and clamps the sum's per-sample L2 norm to the largest
+branch norm.
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from ..skeleton import NUM_JOINTS
+from .common import RelativeBiasCrossAttention, encoder_layer
+
+PARTNER_FRAME_DIM = NUM_JOINTS * 3 * 2 + 1  # positions, velocities, "present" flag
+
+
+class OthersEncoder(nn.Module):
+    """TCN over the partner's recent joints in the ego's canonical frame -> one token per frame."""
+
+    def __init__(self, window: int, d: int) -> None:
+        super().__init__()
+        self.inp = nn.Conv1d(PARTNER_FRAME_DIM, d, 1)
+        self.convs = nn.ModuleList(nn.Conv1d(d, d, 3, padding=dil, dilation=dil) for dil in (1, 2, 4))
+        self.pos = nn.Parameter(torch.randn(window, d) * 0.02)
+        self.norm = nn.LayerNorm(d)
+
+    def forward(self, partner: torch.Tensor, present: torch.Tensor) -> torch.Tensor:
+        """partner (B, W, 22, 3) canonical joints, present (B, W) bool -> tokens (B, W, d)."""
+        b, w = partner.shape[:2]
+        pos = partner.reshape(b, w, -1) * present.unsqueeze(-1)
+        vel = torch.cat((torch.zeros_like(pos[:, :1]), pos[:, 1:] - pos[:, :-1]), 1)
+        both = present[:, 1:] & present[:, :-1]
+        vel[:, 1:] = vel[:, 1:] * both.unsqueeze(-1)
+        x = torch.cat((pos, vel * 10.0, present.unsqueeze(-1).float()), -1).transpose(1, 2)
+        x = self.inp(x)
+        for conv in self.convs:
+            x = x + nn.functional.gelu(conv(x))
+        return self.norm(x.transpose(1, 2) + self.pos)
+
+
+class SceneEncoder(nn.Module):
+    """ViT over the ego-local occupancy grid, plus one goal token -> (B, 1 + N_patches, d)."""
+
+    def __init__(self, resolution: int, patch: int, d: int, heads: int, layers: int, dropout: float) -> None:
+        super().__init__()
+        self.patch, self.n = patch, resolution // patch
+        self.patch_proj = nn.Linear(patch ** 3, d)
+        self.pos = nn.Parameter(torch.randn(self.n ** 3, d) * 0.02)
+        self.goal_mlp = nn.Sequential(nn.Linear(5, d), nn.GELU(), nn.Linear(d, d))
+        self.layers = nn.ModuleList(encoder_layer(d, heads, 2 * d, dropout) for _ in range(layers))
+        self.norm = nn.LayerNorm(d)
+
+    def forward(self, occupancy: torch.Tensor, goal: torch.Tensor, has_goal: torch.Tensor) -> torch.Tensor:
+        """occupancy (B, R, R, R) in [0, 1]; goal (B, 3) canonical; has_goal (B,) bool."""
+        b, p, n = occupancy.shape[0], self.patch, self.n
+        patches = occupancy.reshape(b, n, p, n, p, n, p).permute(0, 1, 3, 5, 2, 4, 6).reshape(b, n ** 3, p ** 3)
+        tokens = self.patch_proj(patches) + self.pos
+        g = goal * has_goal.unsqueeze(-1)
+        dist = g[:, :2].norm(dim=-1, keepdim=True)
+        goal_tok = self.goal_mlp(torch.cat((g, dist, has_goal.unsqueeze(-1).float()), -1)).unsqueeze(1)
+        x = torch.cat((goal_tok, tokens), 1)
+        for layer in self.layers:
+            x = layer(x)
+        return self.norm(x)
+
+
+class MetaInteractionBlock(nn.Module):
+    """Self-attn -> relation-aware cross-attn -> FiLM (tanh) -> FFN; returns the residual Delta."""
+
+    def __init__(self, d: int, d_ctx: int, heads: int, omega: float, dropout: float, ff_mult: int = 2) -> None:
+        super().__init__()
+        self.norm1 = nn.LayerNorm(d)
+        self.self_attn = nn.MultiheadAttention(d, heads, dropout=dropout, batch_first=True)
+        self.norm2 = nn.LayerNorm(d)
+        self.cross = RelativeBiasCrossAttention(d, d_ctx, d_ctx, heads, omega)
+        self.film = nn.Linear(d_ctx, 2 * d)
+        self.norm3 = nn.LayerNorm(d)
+        self.ffn = nn.Sequential(nn.Linear(d, ff_mult * d), nn.GELU(), nn.Linear(ff_mult * d, d))
+
+    def zero_init(self) -> None:
+        """Start training as an exact no-op so the frozen prior is the starting point."""
+        for lin in (self.self_attn.out_proj, self.film, self.ffn[-1]):
+            nn.init.zeros_(lin.weight)
+            nn.init.zeros_(lin.bias)
+
+    def forward(self, h: torch.Tensor, ctx: torch.Tensor, ctx_mask: torch.Tensor | None = None,
+                kv: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
+        x = self.norm1(h)
+        h1 = h + self.self_attn(x, x, x, need_weights=False)[0]
+        r = self.cross(self.norm2(h1), ctx, ctx_mask, kv)
+        gamma, beta = self.film(r).chunk(2, dim=-1)
+        h_mod = (1 + torch.tanh(gamma)) * h1 + torch.tanh(beta)
+        h_ffn = h_mod + self.ffn(self.norm3(h_mod))
+        return h_ffn - h
+
+
+class MetaInteractionModule(nn.Module):
+    """One domain's adapter: its context encoder and a block per injection layer."""
+
+    def __init__(self, encoder: nn.Module, inject_layers: tuple[int, ...], d: int, d_ctx: int, heads: int,
+                 omega: float, dropout: float, ff_mult: int = 2) -> None:
+        super().__init__()
+        self.encoder = encoder
+        self.inject_layers = tuple(inject_layers)
+        self.blocks = nn.ModuleList(MetaInteractionBlock(d, d_ctx, heads, omega, dropout, ff_mult)
+                                    for _ in self.inject_layers)
+
+    def zero_init(self) -> None:
+        for blk in self.blocks:
+            blk.zero_init()
+
+    def block_at(self, layer: int) -> MetaInteractionBlock | None:
+        """The block injected after denoiser layer `layer`, or None."""
+        return self.blocks[self.inject_layers.index(layer)] if layer in self.inject_layers else None
+
+
+def compose_residuals(deltas: list[torch.Tensor], alphas: list[float | torch.Tensor],
+                      eps: float = 1e-6) -> torch.Tensor | None:
+    """Delta_final = s * sum_i alpha_i Delta_i, s = min(1, max_i ||Delta_i|| / (||sum|| + eps)).
+
+    Norms are per sample over all (T x d) entries. Branches with alpha == 0 should not be passed in
+    (the caller skips them, so all-zero alphas give exactly the prior).
+    """
+    if not deltas:
+        return None
+    total = sum(a * d for a, d in zip(alphas, deltas))
+    norms = torch.stack([d.flatten(1).norm(dim=1) for d in deltas], 0)  # (n, B)
+    largest = norms.max(0).values
+    scale = torch.clamp(largest / (total.flatten(1).norm(dim=1) + eps), max=1.0)
+    return total * scale.view(-1, *([1] * (total.dim() - 1)))

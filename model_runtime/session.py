@@ -1,0 +1,303 @@
+"""ReactionSession: the online rollout, one 10 fps model frame per `step()`.
+
+Scheduling (why no frame ever pays for a whole diffusion): while segment i plays, the reverse
+diffusion of segment i+1 runs a step or two per frame, conditioned on segment i's *predicted* last
+frames (its canonical frame and history) and the partner/scene seen when it started. At the boundary
+the finished latent is decoded with the *real* history. With FWSR on, every frame f >= 1 of a segment
+re-decodes a latent refined from the latest history and partner frames (Algorithm 1), so reactions
+show up within a frame rather than at the next segment. `slide=True` is the paper's ablation: a full
+diffusion every frame. Everything draws noise from one seeded generator in a fixed order, so the same
+seed and inputs give the same frames.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+import torch
+
+from .errors import InputError
+from .features import (ROOT_T, canonical_frame, feature_joints, features_from_pose, features_to_pose,
+                       to_canonical, to_world, world_points_to_canonical)
+from .model import MODULE_NAMES, Contexts, DiffusionJob, ReMoGenModel
+from .skeleton import JOINT_NAMES, NUM_JOINTS, forward_kinematics, matrix_to_quat, quat_to_matrix, \
+    standing_pelvis_height, yaw_matrix
+
+
+@dataclass
+class EgoFrame:
+    """One generated frame in world space (Z-up metres)."""
+    index: int
+    joints: np.ndarray           # (22, 3) float32
+    root: np.ndarray             # (4, 4) float32 pelvis transform (global orientation + position)
+    local_rotations: np.ndarray  # (22, 4) float32 quaternions w-first; [0] = global orientation
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.root[:3, 3]
+
+
+def _frame_from_world_features(index: int, feat_world: torch.Tensor) -> EgoFrame:
+    rot, pelvis = features_to_pose(feat_world)
+    joints, _ = forward_kinematics(rot, pelvis)
+    root = torch.eye(4)
+    root[:3, :3] = rot[0]
+    root[:3, 3] = pelvis
+    return EgoFrame(index, joints.numpy().astype(np.float32), root.numpy().astype(np.float32),
+                    matrix_to_quat(rot).numpy().astype(np.float32))
+
+
+def _as_transform(rot: torch.Tensor, trans: torch.Tensor) -> np.ndarray:
+    m = np.eye(4, dtype=np.float32)
+    m[:3, :3] = rot.numpy()
+    m[:3, 3] = trans.numpy()
+    return m
+
+
+def _check_partner(partner: Any) -> np.ndarray | None:
+    if partner is None:
+        return None
+    try:
+        p = np.asarray(partner, dtype=np.float32)
+    except (TypeError, ValueError):
+        raise InputError("partner must be a (22, 3) array of world joint positions or None") from None
+    if p.shape != (NUM_JOINTS, 3):
+        raise InputError(f"partner joints must have shape (22, 3) (SMPL-X joint order, metres), got {p.shape}")
+    bad = ~np.isfinite(p).all(axis=1)
+    if bad.any():
+        names = ", ".join(JOINT_NAMES[i] for i in np.flatnonzero(bad)[:4])
+        raise InputError(f"partner joints contain NaN or inf ({names}); fix the partner's transforms or pass None")
+    extent = float(np.ptp(p, axis=0).max())
+    if extent > 5.0:
+        raise InputError(f"partner skeleton spans {extent:.1f} m; it looks like centimetres: scale it by 0.01")
+    return p
+
+
+def _check_point(name: str, v: Any) -> np.ndarray | None:
+    if v is None:
+        return None
+    try:
+        p = np.asarray(v, dtype=np.float32).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be an (x, y, z) point in metres or None") from None
+    if p.shape != (3,) or not np.isfinite(p).all():
+        raise InputError(f"{name} must be a finite (x, y, z) point in metres or None, got {v!r}")
+    return p
+
+
+def _check_alpha(alpha: Any) -> dict[str, float]:
+    if alpha is None:
+        return {k: 1.0 for k in MODULE_NAMES}
+    if not isinstance(alpha, dict):
+        raise InputError("alpha must be a dict like {'hhi': 1.0, 'hsi': 0.5}")
+    unknown = sorted(set(alpha) - set(MODULE_NAMES))
+    if unknown:
+        raise InputError(f"unknown alpha key(s) {unknown}; use {list(MODULE_NAMES)}")
+    out = {k: float(alpha.get(k, 0.0)) for k in MODULE_NAMES}
+    if not all(math.isfinite(v) and v >= 0 for v in out.values()):
+        raise InputError(f"alpha weights must be finite and >= 0, got {alpha}")
+    return out
+
+
+class ReactionSession:
+    """Online reaction generation. See module docstring for the scheduling."""
+
+    def __init__(self, model: ReMoGenModel, text: str = "", seed: int = 0, alpha: dict | None = None,
+                 guidance: float = 5.0, fwsr: bool = True, scene: Any = None, slide: bool = False) -> None:
+        self.model = model.eval()
+        self.cfg = model.cfg
+        self.seed = int(seed)
+        self.slide = bool(slide)
+        self._job: DiffusionJob | None = None
+        self.text = text
+        self.alpha = alpha
+        self.guidance = guidance
+        self.fwsr = fwsr
+        self.scene = scene
+        f = self.cfg.future
+        steps = self.cfg.diffusion_steps
+        # Denoising steps per frame of a segment; the boundary frame (f = 0) also decodes and encodes
+        # contexts, so it gets the fewest. Sums to the number of diffusion steps.
+        base, extra = divmod(steps, f)
+        self._steps_at = [base + (1 if i >= f - extra else 0) for i in range(f)]
+        self.reset()
+
+    # ------------------------------------------------------------------ live settings
+    @property
+    def text(self) -> str:
+        return self._text
+
+    @text.setter
+    def text(self, value: str) -> None:
+        if not isinstance(value, str):
+            raise InputError(f"text must be a string, got {type(value).__name__}")
+        self._text = value
+        self._text_emb = self.model.encode_text(value)
+        if self._job is not None:
+            self._job.text_emb = self._text_emb
+
+    @property
+    def alpha(self) -> dict[str, float]:
+        return dict(self._alpha)
+
+    @alpha.setter
+    def alpha(self, value: dict | None) -> None:
+        self._alpha = _check_alpha(value)
+        if self._job is not None:
+            self._job.alpha = dict(self._alpha)
+
+    @property
+    def guidance(self) -> float:
+        return self._guidance
+
+    @guidance.setter
+    def guidance(self, value: float) -> None:
+        g = float(value)
+        if not math.isfinite(g) or g < 0:
+            raise InputError(f"guidance must be a finite number >= 0, got {value!r}")
+        self._guidance = g
+        if self._job is not None:
+            self._job.guidance = g
+
+    @property
+    def fwsr(self) -> bool:
+        return self._fwsr
+
+    @fwsr.setter
+    def fwsr(self, value: bool) -> None:
+        self._fwsr = bool(value)
+
+    @property
+    def scene(self) -> Any:
+        return self._scene
+
+    @scene.setter
+    def scene(self, value: Any) -> None:
+        if value is not None and not hasattr(value, "sample_ego"):
+            raise InputError("scene must be an OccupancyGrid (model_runtime.OccupancyGrid) or None")
+        self._scene = value
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, root_position: Sequence[float] = (0.0, 0.0, 0.0), yaw: float = 0.0,
+              frame: EgoFrame | None = None) -> None:
+        """Start over standing at rest on the floor point `root_position` facing `yaw`, or from a frame.
+
+        yaw is in radians about +Z; yaw = 0 faces -Y (the SMPL-X rest facing, Blender's front view).
+        """
+        h = self.cfg.history
+        if frame is not None:
+            rot = quat_to_matrix(torch.as_tensor(np.asarray(frame.local_rotations, np.float32)))
+            pelvis = torch.as_tensor(np.asarray(frame.root, np.float32)[:3, 3])
+            if rot.shape != (NUM_JOINTS, 3, 3) or not torch.isfinite(rot).all() or not torch.isfinite(pelvis).all():
+                raise InputError("reset frame must hold finite (22, 4) local_rotations and a (4, 4) root")
+        else:
+            pos = _check_point("root_position", root_position)
+            if not math.isfinite(float(yaw)):
+                raise InputError(f"yaw must be a finite angle in radians, got {yaw!r}")
+            rot = torch.eye(3).repeat(NUM_JOINTS, 1, 1)
+            rot[0] = yaw_matrix(torch.tensor(float(yaw)))
+            pelvis = torch.as_tensor(pos) + torch.tensor([0.0, 0.0, standing_pelvis_height()])
+        # H + 1 identical frames: a body standing still (zero deltas)
+        self._hist_world = features_from_pose(rot.expand(h + 1, -1, -1, -1), pelvis.expand(h + 1, -1))
+        self._partner: deque = deque([None] * self.cfg.partner_window, maxlen=self.cfg.partner_window)
+        self._goal: np.ndarray | None = None
+        self._gen = torch.Generator().manual_seed(self.seed)
+        self._seg: dict | None = None
+        self._job = None
+        self._index = 0
+
+    # ------------------------------------------------------------------ stepping
+    @torch.inference_mode()
+    def step(self, partner: Any = None, goal: Any = None) -> EgoFrame:
+        """Advance one model frame (0.1 s). partner: (22, 3) world joints or None; goal: (x, y, z) or None."""
+        p = _check_partner(partner)
+        g = _check_point("goal", goal)
+        self._partner.append(p)
+        self._goal = g
+        if self.slide:
+            feat_world = self._slide_frame()
+        else:
+            feat_world = self._segment_frame()
+        self._hist_world = torch.cat((self._hist_world[1:], feat_world.unsqueeze(0)), 0)
+        out = _frame_from_world_features(self._index, feat_world)
+        self._index += 1
+        return out
+
+    def _segment_frame(self) -> torch.Tensor:
+        seg = self._seg
+        if seg is None or seg["f"] >= self.cfg.future:
+            if self._job is None:  # first segment after reset: nothing ran ahead
+                self._job = self._new_job(self._hist_world)
+            self._job.advance(self.cfg.diffusion_steps)  # no-op when the schedule finished it
+            seg = self._seg = self._start_segment(self._job.result)
+            self._job = self._new_job(to_world(self.model.stats.denormalize(seg["future"][0, -self.cfg.history:]),
+                                               seg["rot"], seg["trans"]))
+        f = seg["f"]
+        if self._fwsr and f >= 1:
+            hist_n = self.model.stats.normalize(to_canonical(self._hist_world, seg["rot"], seg["trans"])).unsqueeze(0)
+            partner, present = self._partner_window(seg["rot"], seg["trans"], self.cfg.history)
+            z = self.model.refine(seg["z0"], hist_n, partner, present, f)
+            feat_n = self.model.decode(seg["hist_n"], z)[0, f]
+        else:
+            feat_n = seg["future"][0, f]
+        self._job.advance(self._steps_at[f])
+        seg["f"] = f + 1
+        return to_world(self.model.stats.denormalize(feat_n).unsqueeze(0), seg["rot"], seg["trans"])[0]
+
+    def _slide_frame(self) -> torch.Tensor:
+        job = self._new_job(self._hist_world)
+        job.advance(self.cfg.diffusion_steps)
+        seg = self._start_segment(job.result)
+        return to_world(self.model.stats.denormalize(seg["future"][0, :1]), seg["rot"], seg["trans"])[0]
+
+    def _start_segment(self, z0: torch.Tensor) -> dict:
+        """Decode a finished latent with the real history in its own canonical frame."""
+        rot, trans = canonical_frame(feature_joints(self._hist_world[0]))
+        hist_n = self.model.stats.normalize(to_canonical(self._hist_world, rot, trans)).unsqueeze(0)
+        return {"rot": rot, "trans": trans, "hist_n": hist_n, "z0": z0,
+                "future": self.model.decode(hist_n, z0), "f": 0}
+
+    def _new_job(self, hist_world: torch.Tensor) -> DiffusionJob:
+        """A diffusion job for the segment that starts after `hist_world` (real or predicted)."""
+        rot, trans = canonical_frame(feature_joints(hist_world[0]))
+        hist_n = self.model.stats.normalize(to_canonical(hist_world, rot, trans)).unsqueeze(0)
+        contexts = self._encode_contexts(rot, trans)
+        return DiffusionJob(self.model, hist_n, self._text_emb, contexts, self._alpha, self._guidance, self._gen)
+
+    def _encode_contexts(self, rot: torch.Tensor, trans: torch.Tensor) -> Contexts:
+        partner, present = self._partner_window(rot, trans, self.cfg.partner_window)
+        occupancy = goal = None
+        if self._scene is not None:
+            occ = self._scene.sample_ego(_as_transform(rot, trans), bounds=self.cfg.scene_bounds,
+                                         resolution=self.cfg.voxel_resolution)
+            occupancy = torch.as_tensor(np.asarray(occ, np.float32)).unsqueeze(0)
+        if self._goal is not None:
+            goal = world_points_to_canonical(torch.as_tensor(self._goal).view(1, 1, 3), rot, trans)[:, 0]
+        # Encode every cue that is present, even at alpha 0, so a slider moved mid-segment takes effect
+        # on the next denoising step; blocks of modules at alpha 0 are still skipped.
+        return self.model.encode_contexts(partner, present, occupancy, goal, {k: 1.0 for k in MODULE_NAMES})
+
+    def _partner_window(self, rot: torch.Tensor, trans: torch.Tensor, n: int) -> tuple[torch.Tensor, torch.Tensor]:
+        frames = list(self._partner)[-n:]
+        present = torch.tensor([p is not None for p in frames]).unsqueeze(0)
+        pts = torch.zeros(1, n, NUM_JOINTS, 3)
+        for i, p in enumerate(frames):
+            if p is not None:
+                pts[0, i] = world_points_to_canonical(torch.from_numpy(p), rot, trans)
+        return pts, present
+
+    # ------------------------------------------------------------------ introspection
+    @property
+    def frame_index(self) -> int:
+        return self._index
+
+    def history_world_features(self) -> torch.Tensor:
+        """(H, 276) the latest emitted frames as world-frame features (for tools and tests)."""
+        return self._hist_world.clone()
+
+    @property
+    def root_height(self) -> float:
+        return float(self._hist_world[-1, ROOT_T][2])
