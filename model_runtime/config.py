@@ -21,17 +21,17 @@ class ModelConfig:
     vae_heads: int = 4
     vae_ff: int = 256
     # latent denoiser
-    den_dim: int = 192
+    den_dim: int = 128
     den_layers: int = 4
     den_heads: int = 4
-    den_ff: int = 384
+    den_ff: int = 256
     diffusion_steps: int = 10
     text: dict = field(default_factory=lambda: {"name": "hashed_ngram", "dim": 128, "buckets": 8192, "seed": 1234})
     # Meta-Interaction Modules
-    mim_dim: int = 96
+    mim_dim: int = 64
     mim_heads: int = 4
-    mim_ff_mult: int = 2         # FFN width of a Meta-Interaction block, times den_dim
-    inject_layers: tuple = (1, 3)
+    mim_ff_mult: int = 1         # FFN width of a Meta-Interaction block, times den_dim
+    inject_layers: tuple = (1,)          # one injection point keeps the default under 5 ms a frame
     partner_window: int = 10    # partner frames the HHI encoder sees (1 s)
     voxel_resolution: int = 32
     voxel_patch: int = 8

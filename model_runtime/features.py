@@ -64,30 +64,31 @@ def feature_joints(feat: torch.Tensor) -> torch.Tensor:
     return feat[..., JOINTS].reshape(feat.shape[:-1] + (NUM_JOINTS, 3))
 
 
+# The 276 channels are 92 three-vectors. Which of them a rigid change of frame moves:
+_VEC3 = FEATURE_DIM // 3
+_POINT_ROWS = torch.tensor([0] + list(range(JOINTS.start // 3, JOINTS.stop // 3)))        # + translation
+_FIXED_ROWS = torch.arange(ROT6D.start // 3 + 2, ROT6D.stop // 3)    # local rotations of joints 1..21
+_RDELTA_ROWS = (ROOT_R_DELTA.start // 3, ROOT_R_DELTA.start // 3 + 1)
+
+
 def rigid_transform(feat: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
     """Express features in another frame: x' = rot @ x + trans for points, rot @ v for vectors.
 
-    rot (..., 3, 3), trans (..., 3) broadcast over the frame axis of feat (..., T, 276).
-    Local joint rotations do not change; the global orientation and its delta do.
+    rot (..., 3, 3) must be a rotation about +Z (canonical frames only differ by yaw); trans (..., 3).
+    Both broadcast over the frame axis of feat (..., T, 276). Local joint rotations do not change; the
+    global orientation's 6D columns rotate with rot, and its delta D becomes rot D rot^T, whose first two
+    columns only need D's first two because rot^T keeps the z axis.
     """
-    r = rot.unsqueeze(-3)  # (..., 1, 3, 3) broadcasts over T
-    tr = trans.unsqueeze(-2)
-    lead = feat.shape[:-1]
-
-    def pts(x: torch.Tensor, n: int) -> torch.Tensor:
-        return (x.reshape(lead + (n, 3)) @ r.transpose(-1, -2)).reshape(lead + (n * 3,))
-
-    root_t = (feat[..., ROOT_T].unsqueeze(-2) @ r.transpose(-1, -2)).squeeze(-2) + tr
-    rots6 = feat[..., ROT6D].reshape(lead + (NUM_JOINTS, 6))
-    go = rot6d_to_matrix(rots6[..., 0, :])
-    go_new = matrix_to_rot6d(r @ go)
-    rots6 = torch.cat((go_new.unsqueeze(-2), rots6[..., 1:, :]), dim=-2).reshape(lead + (NUM_JOINTS * 6,))
-    root_td = (feat[..., ROOT_T_DELTA].unsqueeze(-2) @ r.transpose(-1, -2)).squeeze(-2)
-    rd = rot6d_to_matrix(feat[..., ROOT_R_DELTA])
-    rd_new = matrix_to_rot6d(r @ rd @ r.transpose(-1, -2))
-    joints = pts(feat[..., JOINTS], NUM_JOINTS) + tr.repeat((1,) * (tr.dim() - 1) + (NUM_JOINTS,))
-    jd = pts(feat[..., JOINT_DELTA], NUM_JOINTS)
-    return torch.cat((root_t, rots6, root_td, rd_new, joints, jd), dim=-1)
+    v = feat.reshape(feat.shape[:-1] + (_VEC3, 3))
+    r = rot.unsqueeze(-3)
+    out = v @ r.transpose(-1, -2)                        # every 3-vector rotated
+    out[..., _FIXED_ROWS, :] = v[..., _FIXED_ROWS, :]    # ... except local rotations
+    out[..., _POINT_ROWS, :] += trans.unsqueeze(-2).unsqueeze(-2)
+    a = rot[..., :2, :2].transpose(-1, -2).unsqueeze(-3)  # (rot^T)[:2, :2]
+    c0, c1 = out[..., _RDELTA_ROWS[0], :].clone(), out[..., _RDELTA_ROWS[1], :].clone()
+    out[..., _RDELTA_ROWS[0], :] = a[..., 0, 0:1] * c0 + a[..., 1, 0:1] * c1
+    out[..., _RDELTA_ROWS[1], :] = a[..., 0, 1:2] * c0 + a[..., 1, 1:2] * c1
+    return out.reshape(feat.shape)
 
 
 def canonical_frame(joints: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

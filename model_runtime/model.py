@@ -86,16 +86,26 @@ class ReMoGenModel(nn.Module):
 
     # ------------------------------------------------------------------ denoising
     def predict_x0(self, z_t: torch.Tensor, t: int, hist: torch.Tensor, text_emb: torch.Tensor,
-                   contexts: Contexts, alpha: dict[str, float], guidance: float) -> torch.Tensor:
-        """x0 with classifier-free guidance: conditional and unconditional passes as one batch."""
+                   contexts: Contexts, alpha: dict[str, float], guidance: float,
+                   cache: dict | None = None) -> torch.Tensor:
+        """x0 with classifier-free guidance: conditional and unconditional passes as one batch.
+
+        `cache` (owned by a DiffusionJob) keeps the tokens that do not change between a segment's
+        denoising steps (text + history tokens, all step embeddings).
+        """
         b = z_t.shape[0]
         use_cfg = guidance != 1.0
         n = 2 if use_cfg else 1
-        drop = torch.zeros(n * b, dtype=torch.bool)
-        if use_cfg:
+        cache = {} if cache is None else cache
+        if ("cond", n) not in cache:
+            drop = torch.zeros(n * b, dtype=torch.bool)
             drop[b:] = True
-        text_tok = self.denoiser.text_tokens(text_emb.expand(b, -1).repeat(n, 1), drop)
-        ctx = contexts.repeat(n) if use_cfg else contexts
+            text_tok = self.denoiser.text_tokens(text_emb.expand(b, -1).repeat(n, 1), drop)
+            cache[("cond", n)] = self.denoiser.condition_tokens(hist.repeat(n, 1, 1), text_tok)
+        if ("temb", n) not in cache:
+            steps = torch.arange(self.cfg.diffusion_steps).repeat_interleave(n * b)
+            cache[("temb", n)] = self.denoiser.time_tokens(steps).view(self.cfg.diffusion_steps, n * b, 1, -1)
+        ctx = contexts.repeat(n)
         names = [k for k in MODULE_NAMES if k in ctx.items and alpha.get(k, 0.0) != 0.0]
 
         def inject(layer: int, h: torch.Tensor) -> torch.Tensor | None:
@@ -108,8 +118,8 @@ class ReMoGenModel(nn.Module):
                     weights.append(alpha[k])
             return compose_residuals(deltas, weights)
 
-        tt = torch.full((n * b,), t, dtype=torch.long)
-        x0 = self.denoiser(z_t.repeat(n, 1, 1), tt, hist.repeat(n, 1, 1), text_tok, inject if names else None)
+        x0 = self.denoiser.forward_tokens(z_t.repeat(n, 1, 1), cache[("temb", n)][t], cache[("cond", n)],
+                                          inject if names else None)
         if not use_cfg:
             return x0
         cond, uncond = x0[:b], x0[b:]
@@ -159,13 +169,25 @@ class DiffusionJob:
 
     def __init__(self, model: ReMoGenModel, hist: torch.Tensor, text_emb: torch.Tensor, contexts: Contexts,
                  alpha: dict[str, float], guidance: float, generator: torch.Generator) -> None:
-        self.model, self.hist, self.text_emb, self.contexts = model, hist, text_emb, contexts
+        self.model, self.hist, self.contexts = model, hist, contexts
+        self._cache: dict = {}
+        self.text_emb = text_emb
         self.alpha, self.guidance, self.gen = dict(alpha), float(guidance), generator
         cfg = model.cfg
         shape = (hist.shape[0], cfg.latent_tokens, cfg.latent_dim)
         self.z = torch.randn(shape, generator=generator)
         self.t = cfg.diffusion_steps - 1
         self.result: torch.Tensor | None = None
+
+    @property
+    def text_emb(self) -> torch.Tensor:
+        return self._text_emb
+
+    @text_emb.setter
+    def text_emb(self, value: torch.Tensor) -> None:
+        self._text_emb = value
+        self._cache.pop(("cond", 1), None)
+        self._cache.pop(("cond", 2), None)
 
     @property
     def done(self) -> bool:
@@ -176,7 +198,7 @@ class DiffusionJob:
             if self.done:
                 return
             x0 = self.model.predict_x0(self.z, self.t, self.hist, self.text_emb, self.contexts,
-                                       self.alpha, self.guidance)
+                                       self.alpha, self.guidance, self._cache)
             if self.t == 0:
                 self.result = x0
             else:

@@ -3,7 +3,11 @@
 Scheduling (why no frame ever pays for a whole diffusion): while segment i plays, the reverse
 diffusion of segment i+1 runs a step or two per frame, conditioned on segment i's *predicted* last
 frames (its canonical frame and history) and the partner/scene seen when it started. At the boundary
-the finished latent is decoded with the *real* history. With FWSR on, every frame f >= 1 of a segment
+the finished latent is decoded with the *real* history. A job's inputs (history, contexts, text,
+alpha, guidance) are fixed when it starts; changing them takes effect from the next segment's
+diffusion (within 0.8 s of model time), while FWSR reacts to the partner every frame.
+(A background thread for the diffusion was measured and rejected: with two Python threads issuing
+small torch ops, GIL contention made the job finish later than spreading it, p99 38 ms vs 9 ms.) With FWSR on, every frame f >= 1 of a segment
 re-decodes a latent refined from the latest history and partner frames (Algorithm 1), so reactions
 show up within a frame rather than at the next segment. `slide=True` is the paper's ablation: a full
 diffusion every frame. Everything draws noise from one seeded generator in a fixed order, so the same
@@ -20,11 +24,11 @@ import numpy as np
 import torch
 
 from .errors import InputError
-from .features import (ROOT_T, canonical_frame, feature_joints, features_from_pose, features_to_pose,
-                       to_canonical, to_world, world_points_to_canonical)
+from .features import (ROOT_T, ROT6D, canonical_frame, feature_joints, features_from_pose, to_canonical,
+                       to_world, world_points_to_canonical)
 from .model import MODULE_NAMES, Contexts, DiffusionJob, ReMoGenModel
-from .skeleton import JOINT_NAMES, NUM_JOINTS, forward_kinematics, matrix_to_quat, quat_to_matrix, \
-    standing_pelvis_height, yaw_matrix
+from .skeleton import (JOINT_NAMES, NUM_JOINTS, forward_kinematics_np, matrix_to_quat_np, quat_to_matrix,
+                       rot6d_to_matrix_np, standing_pelvis_height, yaw_matrix)
 
 
 @dataclass
@@ -41,13 +45,13 @@ class EgoFrame:
 
 
 def _frame_from_world_features(index: int, feat_world: torch.Tensor) -> EgoFrame:
-    rot, pelvis = features_to_pose(feat_world)
-    joints, _ = forward_kinematics(rot, pelvis)
-    root = torch.eye(4)
-    root[:3, :3] = rot[0]
-    root[:3, 3] = pelvis
-    return EgoFrame(index, joints.numpy().astype(np.float32), root.numpy().astype(np.float32),
-                    matrix_to_quat(rot).numpy().astype(np.float32))
+    f = feat_world.numpy()
+    rot = rot6d_to_matrix_np(f[ROT6D].reshape(NUM_JOINTS, 6))
+    pelvis = f[ROOT_T]
+    root = np.eye(4, dtype=np.float32)
+    root[:3, :3], root[:3, 3] = rot[0], pelvis
+    return EgoFrame(index, forward_kinematics_np(rot, pelvis).astype(np.float32), root,
+                    matrix_to_quat_np(rot).astype(np.float32))
 
 
 def _as_transform(rot: torch.Tensor, trans: torch.Tensor) -> np.ndarray:
@@ -136,8 +140,6 @@ class ReactionSession:
             raise InputError(f"text must be a string, got {type(value).__name__}")
         self._text = value
         self._text_emb = self.model.encode_text(value)
-        if self._job is not None:
-            self._job.text_emb = self._text_emb
 
     @property
     def alpha(self) -> dict[str, float]:
@@ -146,8 +148,6 @@ class ReactionSession:
     @alpha.setter
     def alpha(self, value: dict | None) -> None:
         self._alpha = _check_alpha(value)
-        if self._job is not None:
-            self._job.alpha = dict(self._alpha)
 
     @property
     def guidance(self) -> float:
@@ -159,8 +159,6 @@ class ReactionSession:
         if not math.isfinite(g) or g < 0:
             raise InputError(f"guidance must be a finite number >= 0, got {value!r}")
         self._guidance = g
-        if self._job is not None:
-            self._job.guidance = g
 
     @property
     def fwsr(self) -> bool:
@@ -229,12 +227,11 @@ class ReactionSession:
     def _segment_frame(self) -> torch.Tensor:
         seg = self._seg
         if seg is None or seg["f"] >= self.cfg.future:
-            if self._job is None:  # first segment after reset: nothing ran ahead
-                self._job = self._new_job(self._hist_world)
-            self._job.advance(self.cfg.diffusion_steps)  # no-op when the schedule finished it
-            seg = self._seg = self._start_segment(self._job.result)
-            self._job = self._new_job(to_world(self.model.stats.denormalize(seg["future"][0, -self.cfg.history:]),
-                                               seg["rot"], seg["trans"]))
+            job = self._finish_job()
+            seg = self._seg = self._start_segment(job.result)
+            predicted = to_world(self.model.stats.denormalize(seg["future"][0, -self.cfg.history:]),
+                                 seg["rot"], seg["trans"])
+            self._job = self._new_job(predicted)
         f = seg["f"]
         if self._fwsr and f >= 1:
             hist_n = self.model.stats.normalize(to_canonical(self._hist_world, seg["rot"], seg["trans"])).unsqueeze(0)
@@ -246,6 +243,13 @@ class ReactionSession:
         self._job.advance(self._steps_at[f])
         seg["f"] = f + 1
         return to_world(self.model.stats.denormalize(feat_n).unsqueeze(0), seg["rot"], seg["trans"])[0]
+
+    def _finish_job(self) -> DiffusionJob:
+        """The finished diffusion for the segment about to start (all of it now after a reset)."""
+        job = self._job if self._job is not None else self._new_job(self._hist_world)
+        job.advance(self.cfg.diffusion_steps)  # a no-op when the spread schedule already finished it
+        self._job = None
+        return job
 
     def _slide_frame(self) -> torch.Tensor:
         job = self._new_job(self._hist_world)

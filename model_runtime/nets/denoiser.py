@@ -40,10 +40,21 @@ class LatentDenoiser(nn.Module):
         tok = self.text_proj(text_emb)
         return torch.where(drop.unsqueeze(-1), self.null_text.expand_as(tok), tok).unsqueeze(1)
 
+    def time_tokens(self, t: torch.Tensor) -> torch.Tensor:
+        """(B,) integer steps -> (B, 1, d)."""
+        return self.time_mlp(sinusoidal_embedding(t, self.d)).unsqueeze(1)
+
+    def condition_tokens(self, hist: torch.Tensor, text_tok: torch.Tensor) -> torch.Tensor:
+        """[text, history] tokens (B, 1 + H, d); constant over a segment's denoising steps."""
+        return torch.cat((text_tok, self.hist_proj(hist)), 1)
+
     def forward(self, z_t: torch.Tensor, t: torch.Tensor, hist: torch.Tensor, text_tok: torch.Tensor,
                 inject: InjectFn | None = None) -> torch.Tensor:
-        temb = self.time_mlp(sinusoidal_embedding(t, self.d)).unsqueeze(1)
-        x = torch.cat((temb, text_tok, self.hist_proj(hist), self.z_proj(z_t)), 1) + self.pos
+        return self.forward_tokens(z_t, self.time_tokens(t), self.condition_tokens(hist, text_tok), inject)
+
+    def forward_tokens(self, z_t: torch.Tensor, temb: torch.Tensor, cond: torch.Tensor,
+                       inject: InjectFn | None = None) -> torch.Tensor:
+        x = torch.cat((temb, cond, self.z_proj(z_t)), 1) + self.pos
         for i, layer in enumerate(self.layers):
             x = layer(x)
             if inject is not None:

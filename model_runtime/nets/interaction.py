@@ -11,7 +11,7 @@ import torch
 from torch import nn
 
 from ..skeleton import NUM_JOINTS
-from .common import RelativeBiasCrossAttention, encoder_layer
+from .common import RelativeBiasCrossAttention, SelfAttention, encoder_layer
 
 PARTNER_FRAME_DIM = NUM_JOINTS * 3 * 2 + 1  # positions, velocities, "present" flag
 
@@ -72,7 +72,7 @@ class MetaInteractionBlock(nn.Module):
     def __init__(self, d: int, d_ctx: int, heads: int, omega: float, dropout: float, ff_mult: int = 2) -> None:
         super().__init__()
         self.norm1 = nn.LayerNorm(d)
-        self.self_attn = nn.MultiheadAttention(d, heads, dropout=dropout, batch_first=True)
+        self.self_attn = SelfAttention(d, heads, dropout)
         self.norm2 = nn.LayerNorm(d)
         self.cross = RelativeBiasCrossAttention(d, d_ctx, d_ctx, heads, omega)
         self.film = nn.Linear(d_ctx, 2 * d)
@@ -81,14 +81,13 @@ class MetaInteractionBlock(nn.Module):
 
     def zero_init(self) -> None:
         """Start training as an exact no-op so the frozen prior is the starting point."""
-        for lin in (self.self_attn.out_proj, self.film, self.ffn[-1]):
+        for lin in (self.self_attn.out, self.film, self.ffn[-1]):
             nn.init.zeros_(lin.weight)
             nn.init.zeros_(lin.bias)
 
     def forward(self, h: torch.Tensor, ctx: torch.Tensor, ctx_mask: torch.Tensor | None = None,
                 kv: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
-        x = self.norm1(h)
-        h1 = h + self.self_attn(x, x, x, need_weights=False)[0]
+        h1 = h + self.self_attn(self.norm1(h))
         r = self.cross(self.norm2(h1), ctx, ctx_mask, kv)
         gamma, beta = self.film(r).chunk(2, dim=-1)
         h_mod = (1 + torch.tanh(gamma)) * h1 + torch.tanh(beta)

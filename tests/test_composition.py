@@ -1,0 +1,70 @@
+import numpy as np
+import torch
+
+from model_runtime.model import Contexts
+from model_runtime.nets.interaction import compose_residuals
+from model_runtime.session import ReactionSession
+from model_runtime.skeleton import rest_joints
+
+
+def test_clamp_never_exceeds_largest_branch_norm():
+    g = torch.Generator().manual_seed(0)
+    for _ in range(200):
+        n = int(torch.randint(1, 4, (1,), generator=g))
+        deltas = [torch.randn(3, 5, 8, generator=g) * float(torch.rand(1, generator=g) * 4) for _ in range(n)]
+        alphas = [float(a) for a in torch.rand(n, generator=g) * 3]
+        out = compose_residuals(deltas, alphas)
+        largest = torch.stack([d.flatten(1).norm(dim=1) for d in deltas]).max(0).values
+        assert (out.flatten(1).norm(dim=1) <= largest * (1 + 1e-5)).all()
+
+
+def test_clamp_leaves_small_sums_unchanged():
+    a = torch.randn(2, 4, 6)
+    b = -0.5 * a  # opposing branches: the sum is smaller than either
+    out = compose_residuals([a, b], [1.0, 1.0])
+    assert torch.equal(out, a + b)
+    half = compose_residuals([a], [0.5])
+    assert torch.equal(half, 0.5 * a)
+
+
+def test_clamp_scales_large_sums_to_the_largest_branch():
+    a = torch.randn(2, 4, 6)
+    out = compose_residuals([a, a.clone()], [1.0, 1.0])
+    assert torch.allclose(out.flatten(1).norm(dim=1), a.flatten(1).norm(dim=1), rtol=1e-5)
+
+
+def test_no_branches_is_no_residual():
+    assert compose_residuals([], []) is None
+
+
+def test_alpha_zero_everywhere_gives_exactly_the_prior(tiny_model):
+    m = tiny_model
+    cfg = m.cfg
+    g = torch.Generator().manual_seed(1)
+    z = torch.randn(1, cfg.latent_tokens, cfg.latent_dim, generator=g)
+    hist = torch.randn(1, cfg.history, cfg.feature_dim, generator=g)
+    te = m.encode_text("walk forward")
+    partner = torch.randn(1, cfg.partner_window, 22, 3, generator=g)
+    present = torch.ones(1, cfg.partner_window, dtype=torch.bool)
+    occ = (torch.rand(1, 32, 32, 32, generator=g) > 0.8).float()
+    with torch.inference_mode():
+        ctx = m.encode_contexts(partner, present, occ, torch.zeros(1, 3), {"hhi": 1, "hsi": 1})
+        prior = m.predict_x0(z, 4, hist, te, Contexts({}), {}, 5.0)
+        zero = m.predict_x0(z, 4, hist, te, ctx, {"hhi": 0.0, "hsi": 0.0}, 5.0)
+        on = m.predict_x0(z, 4, hist, te, ctx, {"hhi": 1.0, "hsi": 1.0}, 5.0)
+    assert torch.equal(prior, zero)
+    assert not torch.allclose(prior, on)
+
+
+def test_session_with_alpha_zero_matches_prior_only_session(tiny_model):
+    from model_runtime.bench import approaching_partner
+    partner = approaching_partner(20)
+    frames = {}
+    for name, alpha, use_partner in (("prior", {"hhi": 1.0, "hsi": 1.0}, False),
+                                     ("zero", {"hhi": 0.0, "hsi": 0.0}, True),
+                                     ("on", {"hhi": 1.0, "hsi": 0.0}, True)):
+        s = ReactionSession(tiny_model, text="walk", seed=3, alpha=alpha, fwsr=False)
+        s.reset()
+        frames[name] = np.stack([s.step(partner=partner[i] if use_partner else None).joints for i in range(20)])
+    assert np.array_equal(frames["prior"], frames["zero"])
+    assert not np.allclose(frames["prior"], frames["on"])

@@ -1,0 +1,145 @@
+import numpy as np
+import pytest
+import torch
+
+from model_runtime import EgoFrame, InputError, ReactionSession
+from model_runtime.bench import approaching_partner
+from model_runtime.features import canonical_frame, feature_joints, to_canonical, to_world
+
+
+def rollout(model, n=20, seed=0, **kw):
+    s = ReactionSession(model, text="walk to the person and wave", seed=seed, **kw)
+    s.reset(root_position=(1.0, 2.0, 0.0), yaw=0.3)
+    partner = approaching_partner(n)
+    return [s.step(partner=partner[i], goal=(0.0, -3.0, 0.0)) for i in range(n)]
+
+
+def test_step_outputs_shapes_and_types(tiny_model):
+    f = rollout(tiny_model, 3)[-1]
+    assert isinstance(f, EgoFrame)
+    assert f.joints.shape == (22, 3) and f.root.shape == (4, 4) and f.local_rotations.shape == (22, 4)
+    assert f.joints.dtype == np.float32 and np.isfinite(f.joints).all()
+    assert np.allclose(np.linalg.norm(f.local_rotations, axis=1), 1, atol=1e-5)
+    assert np.allclose(f.root[:3, 3], f.joints[0], atol=1e-5)
+
+
+def test_same_seed_same_frames_other_seed_differs(tiny_model):
+    a = np.stack([f.joints for f in rollout(tiny_model, 20, seed=5)])
+    b = np.stack([f.joints for f in rollout(tiny_model, 20, seed=5)])
+    c = np.stack([f.joints for f in rollout(tiny_model, 20, seed=6)])
+    assert np.array_equal(a, b)
+    assert not np.allclose(a, c)
+
+
+def test_reset_restarts_identically(tiny_model):
+    s = ReactionSession(tiny_model, text="walk", seed=2)
+    s.reset()
+    first = [s.step().joints for _ in range(12)]
+    s.reset()
+    again = [s.step().joints for _ in range(12)]
+    assert all(np.array_equal(x, y) for x, y in zip(first, again))
+
+
+def test_reset_places_a_standing_body(tiny_model):
+    s = ReactionSession(tiny_model, seed=0)
+    s.reset(root_position=(1.0, -2.0, 0.0), yaw=np.pi / 2)
+    hist = s.history_world_features()
+    joints = feature_joints(hist[-1])
+    assert torch.allclose(joints[0, :2], torch.tensor([1.0, -2.0]), atol=1e-5)
+    assert float(joints[:, 2].min()) == pytest.approx(0.02, abs=0.01)           # soles on the floor
+    rot, _ = canonical_frame(joints)
+    assert torch.allclose(rot[:, 1], torch.tensor([1.0, 0.0, 0.0]), atol=0.05)   # yaw 90 deg: -Y -> +X
+
+
+def test_fwsr_off_emits_exactly_the_segment_decodes(tiny_model):
+    """Reference rollout from model primitives: full diffusion, decode, slide history; same RNG order."""
+    m = tiny_model
+    cfg = m.cfg
+    s = ReactionSession(m, text="walk", seed=11, fwsr=False, alpha={"hhi": 0.0, "hsi": 0.0})
+    s.reset()
+    hist_world = s.history_world_features()
+    got = [s.step() for _ in range(2 * cfg.future)]
+    gen = torch.Generator().manual_seed(11)
+    te = m.encode_text("walk")
+    ref = []
+    with torch.inference_mode():
+        from model_runtime.model import Contexts
+        for _ in range(2):
+            rot, trans = canonical_frame(feature_joints(hist_world[0]))
+            hist_n = m.stats.normalize(to_canonical(hist_world, rot, trans)).unsqueeze(0)
+            z0 = m.sample_latent(hist_n, te, Contexts({}), {"hhi": 0.0, "hsi": 0.0}, 5.0, gen)
+            fut = to_world(m.stats.denormalize(m.decode(hist_n, z0)[0]), rot, trans)
+            ref.extend(fut)
+            hist_world = fut[-cfg.history:]
+    for f, r in zip(got, ref):
+        assert np.allclose(f.root[:3, 3], r[:3].numpy(), atol=1e-5)
+
+
+def test_fwsr_changes_frames_after_the_first_of_a_segment(tiny_model):
+    on = rollout(tiny_model, 8, fwsr=True)
+    off = rollout(tiny_model, 8, fwsr=False)
+    assert np.array_equal(on[0].joints, off[0].joints)   # frame 0 of a segment is the initial decode
+    assert not np.allclose(on[3].joints, off[3].joints)
+
+
+def test_slide_mode_runs(tiny_model):
+    frames = rollout(tiny_model, 3, slide=True)
+    assert all(np.isfinite(f.joints).all() for f in frames)
+
+
+def test_settings_change_between_steps(tiny_model):
+    s = ReactionSession(tiny_model, text="walk", seed=0)
+    s.reset()
+    for i in range(20):
+        if i == 5:
+            s.text, s.alpha, s.guidance, s.fwsr = "wave", {"hhi": 0.5, "hsi": 0.0}, 2.0, False
+        if i == 12:
+            s.fwsr = True
+        s.step()
+    assert s.frame_index == 20
+
+
+def test_reset_from_frame(tiny_model):
+    frames = rollout(tiny_model, 5)
+    s = ReactionSession(tiny_model, seed=0)
+    s.reset(frame=frames[-1])
+    assert torch.allclose(feature_joints(s.history_world_features()[-1]), torch.from_numpy(frames[-1].joints),
+                          atol=1e-4)
+
+
+@pytest.mark.parametrize("partner, words", [
+    (np.full((22, 3), np.nan), "NaN"),
+    (np.zeros((21, 3)), "shape (22, 3)"),
+    (np.zeros((22, 4)), "shape (22, 3)"),
+    (np.random.default_rng(0).normal(size=(22, 3)) * 100, "centimetres"),
+    ("left", "partner"),
+])
+def test_bad_partner_raises_one_line_and_changes_nothing(tiny_model, partner, words):
+    s = ReactionSession(tiny_model, seed=0)
+    s.reset()
+    s.step()
+    before = s.history_world_features()
+    with pytest.raises(InputError) as err:
+        s.step(partner=partner)
+    assert words in str(err.value) and "\n" not in str(err.value)
+    assert s.frame_index == 1 and torch.equal(before, s.history_world_features())
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    ({"alpha": {"hhi": 1.0, "xyz": 1.0}}, "unknown alpha"),
+    ({"alpha": {"hhi": float("nan")}}, "finite"),
+    ({"guidance": -1.0}, "guidance"),
+    ({"text": 3}, "text must be a string"),
+    ({"scene": "table"}, "OccupancyGrid"),
+])
+def test_bad_settings_raise(tiny_model, kwargs, words):
+    with pytest.raises(InputError, match=words):
+        ReactionSession(tiny_model, **kwargs)
+
+
+def test_bad_goal_and_reset_raise(tiny_model):
+    s = ReactionSession(tiny_model)
+    with pytest.raises(InputError, match="goal"):
+        s.step(goal=(0.0, float("inf"), 0.0))
+    with pytest.raises(InputError, match="root_position"):
+        s.reset(root_position=(0.0, 0.0))
