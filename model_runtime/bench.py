@@ -76,6 +76,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--warmup", type=int, default=24)
     ap.add_argument("--threads", type=int, default=0, help="torch threads (0 = the measured best per config)")
     ap.add_argument("--model", default=None, help="a model file instead of random weights (its config is used)")
+    ap.add_argument("--precisions", default="fp32,bf16:paper",
+                    help="precisions to run; 'bf16:paper' = bf16 for the paper config only")
     args = ap.parse_args(argv)
     try:
         scene = box_scene()
@@ -85,17 +87,22 @@ def main(argv: list[str] | None = None) -> int:
     for cfg in args.configs.split(","):
         threads = args.threads or BEST_THREADS.get(cfg, 2)
         torch.set_num_threads(threads)
-        model = load_model(args.model) if args.model else load_model(config=cfg)
-        for mode in args.modes.split(","):
-            n = args.slide_frames if mode == "slide" else args.frames
-            res = run_case(model, mode, n, args.warmup, scene)
-            row = {"config": cfg, "mode": mode, **res, "threads": threads, "scene": scene is not None}
-            rows.append(row)
-            print(json.dumps(row), flush=True)
-        by_mode = {r["mode"]: r for r in rows if r["config"] == cfg}
-        if not args.json and "fwsr" in by_mode and "slide" in by_mode:
-            ratio = by_mode["fwsr"]["p50_ms"] / by_mode["slide"]["p50_ms"]
-            print(f"# {cfg}: fwsr p50 / slide p50 = {ratio:.3f}", file=sys.stderr)
+        for prec in args.precisions.split(","):
+            prec, _, only = prec.partition(":")
+            if only and only != cfg:
+                continue
+            model = load_model(args.model, precision=prec) if args.model else load_model(config=cfg, precision=prec)
+            for mode in args.modes.split(","):
+                n = args.slide_frames if mode == "slide" else args.frames
+                res = run_case(model, mode, n, args.warmup, scene)
+                row = {"config": cfg, "mode": mode, **res, "threads": threads, "precision": prec,
+                       "scene": scene is not None}
+                rows.append(row)
+                print(json.dumps(row), flush=True)
+            by_mode = {r["mode"]: r for r in rows if r["config"] == cfg and r["precision"] == prec}
+            if not args.json and "fwsr" in by_mode and "slide" in by_mode:
+                ratio = by_mode["fwsr"]["p50_ms"] / by_mode["slide"]["p50_ms"]
+                print(f"# {cfg} {prec}: fwsr p50 / slide p50 = {ratio:.3f}", file=sys.stderr)
     return 0
 
 

@@ -62,17 +62,18 @@ def _read_payload(path: Path) -> dict:
 
 
 def load_model(path: str | os.PathLike | None = None, *, config: "str | ModelConfig | None" = None,
-               seed: int = 0, device: str = "cpu") -> ReMoGenModel:
+               seed: int = 0, device: str = "cpu", precision: str = "fp32") -> ReMoGenModel:
     """Load a model file, or build a randomly initialised model from a config.
 
     load_model()                  -> the shipped default weights
     load_model("my.pt")           -> that file
     load_model(config="default")  -> random weights of that preset ("tiny", "default", "paper")
+    precision="bf16" runs the diffusion networks in bfloat16 (see ReMoGenModel.set_precision).
     """
     if config is not None and path is not None:
         raise ModelFileError("pass either a model file path or config=..., not both")
     if config is not None:
-        return _random_model(resolve_config(config), seed).to(device).eval()
+        return _random_model(resolve_config(config), seed).to(device).eval().set_precision(precision)
     p = Path(path) if path is not None else DEFAULT_WEIGHTS
     if path is None and not p.exists():
         raise ModelFileError(f"no shipped weights at {p}; train them (python -m model_runtime.train) "
@@ -87,7 +88,7 @@ def load_model(path: str | os.PathLike | None = None, *, config: "str | ModelCon
         raise ModelFileError(f"{p} does not match its own config ({first[:160]}); the file is damaged "
                              "or from another version") from None
     model.meta = dict(payload.get("meta") or {})
-    return model.to(device).eval()
+    return model.to(device).eval().set_precision(precision)
 
 
 def _random_model(cfg: ModelConfig, seed: int) -> ReMoGenModel:

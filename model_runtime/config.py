@@ -77,7 +77,7 @@ PRESETS: dict[str, ModelConfig] = {
     # paper: the paper's sizes (VAE d=256 x 7 layers, denoiser d=512 x 8 layers), for comparison
     "paper": ModelConfig(preset="paper", latent_dim=128, vae_dim=256, vae_layers=7, vae_heads=4, vae_ff=1024,
                          den_dim=512, den_layers=8, den_heads=8, den_ff=1024, mim_dim=256, mim_heads=4, mim_ff_mult=1,
-                         inject_layers=(3, 7), fwsr_dim=128, scene_layers=2,
+                         inject_layers=(3,), fwsr_dim=128, scene_layers=2,
                          scene_bounds=((-0.6, 0.6), (-0.6, 0.6), (0.1, 1.2)),
                          text={"name": "hashed_ngram", "dim": 256, "buckets": 16384, "seed": 1234}),
 }

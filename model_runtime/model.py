@@ -63,6 +63,21 @@ class ReMoGenModel(nn.Module):
         self.schedule = CosineSchedule(cfg.diffusion_steps)
         self.text_encoder: TextEncoder = build_text_encoder(cfg.text)
         self.meta: dict = {}
+        self.diffusion_dtype = torch.float32
+
+    def set_precision(self, precision: str) -> "ReMoGenModel":
+        """"fp32" (default) or "bf16": run the denoiser and Meta-Interaction Modules in bfloat16.
+
+        Inference only. On CPUs with AVX512-BF16 this is ~1.8x faster for the paper-sized denoiser;
+        the VAE decoder and FWSR stay in float32 because their outputs are the visible motion.
+        """
+        if precision not in ("fp32", "bf16"):
+            from .errors import InputError
+            raise InputError(f"precision must be 'fp32' or 'bf16', got {precision!r}")
+        self.diffusion_dtype = torch.bfloat16 if precision == "bf16" else torch.float32
+        self.denoiser.to(self.diffusion_dtype)
+        self.mims.to(self.diffusion_dtype)
+        return self
 
     # ------------------------------------------------------------------ conditioning
     def encode_text(self, text: str) -> torch.Tensor:
@@ -73,15 +88,16 @@ class ReMoGenModel(nn.Module):
                         active: dict[str, float]) -> Contexts:
         """Encode only what the active (alpha != 0) modules need; absent cues switch a module off."""
         items: dict[str, tuple[torch.Tensor, torch.Tensor | None]] = {}
+        dt = self.diffusion_dtype
         if active.get("hhi", 0.0) != 0.0 and partner is not None and present is not None and bool(present.any()):
-            items["hhi"] = (self.mims["hhi"].encoder(partner, present), present)
+            items["hhi"] = (self.mims["hhi"].encoder(partner.to(dt), present), present)
         if active.get("hsi", 0.0) != 0.0 and (occupancy is not None or goal is not None):
             b = (occupancy if occupancy is not None else goal).shape[0]
             r = self.cfg.voxel_resolution
             occ = occupancy if occupancy is not None else torch.zeros(b, r, r, r)
             g = goal if goal is not None else torch.zeros(b, 3)
             has = torch.full((b,), goal is not None)
-            items["hsi"] = (self.mims["hsi"].encoder(occ, g, has), None)
+            items["hsi"] = (self.mims["hsi"].encoder(occ.to(dt), g.to(dt), has), None)
         return Contexts(items)
 
     # ------------------------------------------------------------------ denoising
@@ -94,19 +110,32 @@ class ReMoGenModel(nn.Module):
         denoising steps (text + history tokens, all step embeddings).
         """
         b = z_t.shape[0]
+        dt = self.diffusion_dtype
         use_cfg = guidance != 1.0
         n = 2 if use_cfg else 1
         cache = {} if cache is None else cache
         if ("cond", n) not in cache:
             drop = torch.zeros(n * b, dtype=torch.bool)
             drop[b:] = True
-            text_tok = self.denoiser.text_tokens(text_emb.expand(b, -1).repeat(n, 1), drop)
-            cache[("cond", n)] = self.denoiser.condition_tokens(hist.repeat(n, 1, 1), text_tok)
+            text_tok = self.denoiser.text_tokens(text_emb.to(dt).expand(b, -1).repeat(n, 1), drop)
+            cache[("cond", n)] = self.denoiser.condition_tokens(hist.to(dt).repeat(n, 1, 1), text_tok)
         if ("temb", n) not in cache:
             steps = torch.arange(self.cfg.diffusion_steps).repeat_interleave(n * b)
             cache[("temb", n)] = self.denoiser.time_tokens(steps).view(self.cfg.diffusion_steps, n * b, 1, -1)
         ctx = contexts.repeat(n)
+        inject = self.injector(ctx, alpha)
+        x0 = self.denoiser.forward_tokens(z_t.to(dt).repeat(n, 1, 1), cache[("temb", n)][t], cache[("cond", n)],
+                                          inject).float()
+        if not use_cfg:
+            return x0
+        cond, uncond = x0[:b], x0[b:]
+        return uncond + guidance * (cond - uncond)
+
+    def injector(self, ctx: Contexts, alpha: dict[str, float]):
+        """The denoiser hook adding the composed Meta-Interaction residuals; None when no module is active."""
         names = [k for k in MODULE_NAMES if k in ctx.items and alpha.get(k, 0.0) != 0.0]
+        if not names:
+            return None
 
         def inject(layer: int, h: torch.Tensor) -> torch.Tensor | None:
             deltas, weights = [], []
@@ -118,12 +147,7 @@ class ReMoGenModel(nn.Module):
                     weights.append(alpha[k])
             return compose_residuals(deltas, weights)
 
-        x0 = self.denoiser.forward_tokens(z_t.repeat(n, 1, 1), cache[("temb", n)][t], cache[("cond", n)],
-                                          inject if names else None)
-        if not use_cfg:
-            return x0
-        cond, uncond = x0[:b], x0[b:]
-        return uncond + guidance * (cond - uncond)
+        return inject
 
     def sample_latent(self, hist: torch.Tensor, text_emb: torch.Tensor, contexts: Contexts,
                       alpha: dict[str, float], guidance: float, generator: torch.Generator) -> torch.Tensor:

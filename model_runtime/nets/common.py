@@ -48,12 +48,12 @@ def encoder_layer(d: int, heads: int, ff: int, dropout: float) -> TransformerLay
     return TransformerLayer(d, heads, ff, dropout)
 
 
-def sinusoidal_embedding(t: torch.Tensor, dim: int) -> torch.Tensor:
+def sinusoidal_embedding(t: torch.Tensor, dim: int, dtype: torch.dtype = torch.float32) -> torch.Tensor:
     """(B,) step indices -> (B, dim) sinusoidal features."""
     half = dim // 2
     freqs = torch.exp(-math.log(10000.0) * torch.arange(half, dtype=torch.float32) / half)
     ang = t.float().unsqueeze(-1) * freqs
-    return torch.cat((torch.sin(ang), torch.cos(ang)), dim=-1)
+    return torch.cat((torch.sin(ang), torch.cos(ang)), dim=-1).to(dtype)
 
 
 class RelativeBiasCrossAttention(nn.Module):
@@ -83,7 +83,7 @@ class RelativeBiasCrossAttention(nn.Module):
 
     def _compute_bias(self, t: int, tc: int) -> torch.Tensor:
         dt = (torch.arange(t).unsqueeze(1) - torch.arange(tc).unsqueeze(0)).float() * self.omega
-        rel = torch.stack((torch.sin(dt), torch.cos(dt)), dim=-1)
+        rel = torch.stack((torch.sin(dt), torch.cos(dt)), dim=-1).to(self.bias_proj.weight.dtype)
         return self.bias_proj(rel).permute(2, 0, 1).unsqueeze(0)
 
     def context_kv(self, ctx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -100,6 +100,6 @@ class RelativeBiasCrossAttention(nn.Module):
         q = self.q(x).view(b, t, self.heads, -1).transpose(1, 2)
         bias = self._bias(t, k.shape[2])
         if ctx_mask is not None:  # (B, tc) True = valid token
-            bias = bias + torch.where(ctx_mask, 0.0, -1e4)[:, None, None, :]
+            bias = bias + torch.where(ctx_mask, 0.0, -1e4).to(bias.dtype)[:, None, None, :]
         out = nn.functional.scaled_dot_product_attention(q, k, v, attn_mask=bias)
         return out.transpose(1, 2).reshape(b, t, -1)

@@ -42,7 +42,7 @@ class LatentDenoiser(nn.Module):
 
     def time_tokens(self, t: torch.Tensor) -> torch.Tensor:
         """(B,) integer steps -> (B, 1, d)."""
-        return self.time_mlp(sinusoidal_embedding(t, self.d)).unsqueeze(1)
+        return self.time_mlp(sinusoidal_embedding(t, self.d, self.pos.dtype)).unsqueeze(1)
 
     def condition_tokens(self, hist: torch.Tensor, text_tok: torch.Tensor) -> torch.Tensor:
         """[text, history] tokens (B, 1 + H, d); constant over a segment's denoising steps."""

@@ -33,7 +33,7 @@ class OthersEncoder(nn.Module):
         vel = torch.cat((torch.zeros_like(pos[:, :1]), pos[:, 1:] - pos[:, :-1]), 1)
         both = present[:, 1:] & present[:, :-1]
         vel[:, 1:] = vel[:, 1:] * both.unsqueeze(-1)
-        x = torch.cat((pos, vel * 10.0, present.unsqueeze(-1).float()), -1).transpose(1, 2)
+        x = torch.cat((pos, vel * 10.0, present.unsqueeze(-1).to(pos.dtype)), -1).transpose(1, 2)
         x = self.inp(x)
         for conv in self.convs:
             x = x + nn.functional.gelu(conv(x))
@@ -59,7 +59,7 @@ class SceneEncoder(nn.Module):
         tokens = self.patch_proj(patches) + self.pos
         g = goal * has_goal.unsqueeze(-1)
         dist = g[:, :2].norm(dim=-1, keepdim=True)
-        goal_tok = self.goal_mlp(torch.cat((g, dist, has_goal.unsqueeze(-1).float()), -1)).unsqueeze(1)
+        goal_tok = self.goal_mlp(torch.cat((g, dist, has_goal.unsqueeze(-1).to(g.dtype)), -1)).unsqueeze(1)
         x = torch.cat((goal_tok, tokens), 1)
         for layer in self.layers:
             x = layer(x)

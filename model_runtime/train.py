@@ -1,0 +1,285 @@
+"""Staged training: python -m model_runtime.train STAGE [options]
+
+    python -m model_runtime.train vae   --library runs/clips.npz --out runs/train
+    python -m model_runtime.train prior ...; hhi; hsi; fwsr
+
+Each stage starts from OUT/model.pt (written by the stage before; `vae` starts from a fresh model),
+freezes everything but its own module, trains with AdamW (lr 1e-4), gradient clipping 1.0 and an EMA
+(0.999) of its weights, validates on held-out clips, and writes OUT/model.pt with the EMA weights.
+A resumable state (weights, EMA, optimiser, step, RNG) goes to OUT/STAGE.state.pt every few minutes;
+rerunning the same command continues from it. Losses go to OUT/STAGE.log.jsonl.
+
+Multi-process / multi-machine: `torchrun --nproc_per_node N -m model_runtime.train STAGE ...` runs
+DistributedDataParallel over gloo (CPU) or nccl (CUDA); each rank draws its own batches.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import torch
+import torch.distributed as dist
+
+from .checkpoint import load_model, save_model
+from .config import ModelConfig, resolve_config
+from .data.library import ClipLibrary
+from .errors import RemogenError
+from .model import ReMoGenModel
+from .training.samples import SegmentSampler
+from .training.stages import STAGES, StageLoss, freeze_for, trainable_module
+
+DEFAULT_STEPS = {"vae": 6000, "prior": 8000, "hhi": 3000, "hsi": 3000, "fwsr": 1500}
+
+
+def _rank() -> tuple[int, int]:
+    if dist.is_available() and dist.is_initialized():
+        return dist.get_rank(), dist.get_world_size()
+    return 0, 1
+
+
+def fit_stats(model: ReMoGenModel, lib: ClipLibrary, clip_ids: list[int], samples: int = 20000, seed: int = 0) -> None:
+    """Feature mean/std from canonicalised training segments (computed once, reused by every later stage)."""
+    from .features import canonicalize
+    gen = torch.Generator().manual_seed(seed)
+    cfg = model.cfg
+    span = cfg.history + cfg.future
+    ids = [i for i in clip_ids if lib.frames(i) - 1 >= span]
+    rows = []
+    per = max(1, samples // max(1, len(ids)))
+    for i in ids:
+        feats = lib.features(i)
+        for _ in range(per):
+            s = int(torch.randint(0, feats.shape[0] - span + 1, (1,), generator=gen))
+            rows.append(canonicalize(feats[s:s + span])[0])
+    model.stats.fit(torch.cat(rows))
+
+
+def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int, rank: int):
+    """Training and validation samplers for a stage (interaction stages get generated pairs/scenes)."""
+    train_ids, val_ids = lib.split("train"), lib.split("val")
+    if not train_ids or not val_ids:
+        raise RemogenError(f"the clip library needs both training and held-out clips (has {len(train_ids)} and "
+                           f"{len(val_ids)}); add more clips")
+    pairs_tr = pairs_va = scenes_tr = scenes_va = None
+    if stage in ("hhi", "fwsr"):
+        from .data.pairs import build_hhi_pairs
+        pairs_tr = build_hhi_pairs(lib, train_ids, seed=seed)
+        pairs_va = build_hhi_pairs(lib, val_ids, seed=seed + 1)
+    if stage == "hsi":
+        from .data.pairs import build_hsi_scenes
+        scenes_tr = build_hsi_scenes(lib, train_ids, seed=seed)
+        scenes_va = build_hsi_scenes(lib, val_ids, seed=seed + 1)
+    tr = SegmentSampler(lib, train_ids, model.cfg, model.stats, seed=seed * 1000 + rank, pairs=pairs_tr,
+                        scenes=scenes_tr)
+    va = SegmentSampler(lib, val_ids, model.cfg, model.stats, seed=seed + 7, pairs=pairs_va, scenes=scenes_va)
+    return tr, va
+
+
+class EMA:
+    def __init__(self, params: list[torch.nn.Parameter], decay: float = 0.999) -> None:
+        self.params, self.decay = params, decay
+        self.shadow = [p.detach().clone() for p in params]
+
+    @torch.no_grad()
+    def update(self) -> None:
+        for s, p in zip(self.shadow, self.params):
+            s.lerp_(p.detach(), 1 - self.decay)
+
+    @torch.no_grad()
+    def swap(self) -> None:
+        """Exchange live and EMA weights (call twice to restore)."""
+        for s, p in zip(self.shadow, self.params):
+            tmp = p.detach().clone()
+            p.copy_(s)
+            s.copy_(tmp)
+
+
+def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "default", steps: int | None = None,
+                batch: int = 128, lr: float = 1e-4, seed: int = 0, minutes: float | None = None,
+                ckpt_minutes: float = 3.0, val_every: int = 250, val_batches: int = 4,
+                progress: bool = True) -> Path:
+    """Run (or resume) one stage. Returns the path of the model written."""
+    if stage not in STAGES:
+        raise RemogenError(f"unknown stage {stage!r}; use one of {', '.join(STAGES)}")
+    rank, world = _rank()
+    out.mkdir(parents=True, exist_ok=True)
+    model_path, state_path, log_path = out / "model.pt", out / f"{stage}.state.pt", out / f"{stage}.log.jsonl"
+    torch.manual_seed(seed + rank)
+    st = torch.load(state_path, map_location="cpu", weights_only=True) if state_path.exists() else None
+    if st is not None:  # resume: the whole model as it was, stats included
+        model = ReMoGenModel(ModelConfig.from_dict(st["config"]))
+        model.load_state_dict(st["model"])
+        model.meta = dict(st["meta"])
+    elif stage == "vae":
+        model = ReMoGenModel(resolve_config(config))
+        fit_stats(model, lib, lib.split("train"), seed=seed)
+    else:
+        if not model_path.exists():
+            raise RemogenError(f"{model_path} not found: train the stages before '{stage}' first "
+                               f"({' -> '.join(STAGES)})")
+        model = load_model(model_path)
+    params = freeze_for(model, stage)
+    module = trainable_module(model, stage)
+    if st is None and stage in ("hhi", "hsi", "fwsr"):
+        module.zero_init()   # start as an exact no-op on the frozen model
+    if st is None and stage == "fwsr":
+        _decoder_sensitivity(model, lib, seed)
+    loss_mod = StageLoss(model, stage)
+    ddp = torch.nn.parallel.DistributedDataParallel(loss_mod) if world > 1 else loss_mod
+    opt = torch.optim.AdamW(params, lr=lr, weight_decay=0.01)
+    ema = EMA(params)
+    gen = torch.Generator().manual_seed(seed * 7919 + rank)
+    step, wall = 0, 0.0
+    total = steps or DEFAULT_STEPS[stage]
+    if st is not None:
+        opt.load_state_dict(st["optim"])
+        for s, v in zip(ema.shadow, st["ema"]):
+            s.copy_(v)
+        gen.set_state(st["gen"])
+        step, wall = int(st["step"]), float(st["wall"])
+        total = int(st.get("total", total)) if steps is None else total
+    tr, va = build_samplers(stage, model, lib, seed, rank)
+    bar = None
+    if progress and rank == 0:
+        from tqdm import tqdm
+        bar = tqdm(total=total, initial=step, desc=f"train {stage}", unit="step", dynamic_ncols=True)
+    t_start, last_ckpt = time.time(), time.time()
+    deadline = t_start + minutes * 60 if minutes else None
+
+    def save_state() -> None:
+        if rank != 0:
+            return
+        tmp = state_path.with_suffix(".tmp")
+        torch.save({"config": model.cfg.to_dict(), "model": model.state_dict(), "meta": model.meta,
+                    "optim": opt.state_dict(), "ema": ema.shadow,
+                    "gen": gen.get_state(), "step": step, "wall": wall + time.time() - t_start,
+                    "total": total}, tmp)
+        os.replace(tmp, state_path)
+
+    with log_path.open("a") as log:
+        while step < total and (deadline is None or time.time() < deadline):
+            b = tr.sample(batch, fwsr=(stage == "fwsr"))
+            loss, parts = ddp(b, gen)
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(params, 1.0)
+            opt.step()
+            ema.update()
+            step += 1
+            row = {"stage": stage, "step": step, "loss": float(loss.detach()), **parts}
+            if step % val_every == 0 or step == total:
+                row["val_loss"] = validate(loss_mod, module, ema, va, val_batches, batch, stage)
+            if rank == 0:
+                log.write(json.dumps(row) + "\n")
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix(loss=f"{float(loss):.4f}", **({"val": f"{row['val_loss']:.4f}"}
+                                                                  if "val_loss" in row else {}))
+            if time.time() - last_ckpt > ckpt_minutes * 60:
+                log.flush()
+                save_state()
+                last_ckpt = time.time()
+    if bar is not None:
+        bar.close()
+    save_state()
+    if rank == 0:
+        ema.swap()
+        model.eval()
+        meta = dict(model.meta)
+        stages = dict(meta.get("stages", {}))
+        stages[stage] = {"steps": step, "wall_s": round(wall + time.time() - t_start, 1), "batch": batch,
+                         "lr": lr, "world_size": world, "clips": len(lib.split("train")),
+                         "val_loss": _last_val(log_path)}
+        meta.update({"trained": True, "stages": stages, "sources": sorted(set(lib.sources)),
+                     "non_commercial": "bandai" in set(lib.sources)})
+        model.meta = meta
+        save_model(model, model_path)
+        ema.swap()
+    return model_path
+
+
+@torch.no_grad()
+def validate(loss_mod: StageLoss, module: torch.nn.Module, ema: EMA, va: SegmentSampler, batches: int,
+             batch: int, stage: str) -> float:
+    """Held-out loss with the EMA weights, in eval mode, with a fixed validation RNG."""
+    ema.swap()
+    module.eval()
+    gen = torch.Generator().manual_seed(1234)
+    va.gen.manual_seed(4321)
+    total = 0.0
+    for _ in range(batches):
+        total += float(loss_mod(va.sample(batch, fwsr=(stage == "fwsr")), gen)[0])
+    module.train()
+    ema.swap()
+    return total / batches
+
+
+def _last_val(log_path: Path) -> float | None:
+    val = None
+    with log_path.open() as fh:
+        for line in fh:
+            row = json.loads(line)
+            if "val_loss" in row:
+                val = row["val_loss"]
+    return val
+
+
+def _decoder_sensitivity(model: ReMoGenModel, lib: ClipLibrary, seed: int) -> None:
+    """Finite-difference decoder sensitivity on real training segments (stored in the checkpoint)."""
+    s = SegmentSampler(lib, lib.split("train"), model.cfg, model.stats, seed=seed)
+    b = s.sample(32)
+    with torch.no_grad():
+        z, _ = model.vae.encode(b.hist, b.fut)
+    model.compute_decoder_sensitivity(b.hist, z)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m model_runtime.train", description=__doc__.split("\n\n")[0])
+    ap.add_argument("stage", choices=STAGES + ("all",))
+    ap.add_argument("--library", default="runs/clips.npz", help="clip cache (built from --data if missing)")
+    ap.add_argument("--data", default=None, help="data folder to build the clip cache from (../shared/data)")
+    ap.add_argument("--cmu-only", action="store_true", help="train on CMU clips only (commercial-use weights)")
+    ap.add_argument("--out", default="runs/train")
+    ap.add_argument("--config", default="default")
+    ap.add_argument("--steps", type=int, default=None)
+    ap.add_argument("--batch", type=int, default=128)
+    ap.add_argument("--lr", type=float, default=1e-4)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--minutes", type=float, default=None, help="stop this run after so many minutes (resumable)")
+    ap.add_argument("--threads", type=int, default=0)
+    ap.add_argument("--no-progress", action="store_true")
+    args = ap.parse_args(argv)
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not dist.is_initialized():
+        dist.init_process_group("nccl" if torch.cuda.is_available() else "gloo")
+    try:
+        lib_path = Path(args.library)
+        if not lib_path.exists():
+            if not args.data:
+                raise RemogenError(f"clip cache {lib_path} not found; pass --data ../shared/data to build it")
+            from .data.prepare import build_library
+            build_library(args.data).save(lib_path)
+        lib = ClipLibrary.load(lib_path)
+        if args.cmu_only:
+            lib = lib.subset({"cmu"})
+        stages = STAGES if args.stage == "all" else (args.stage,)
+        for st in stages:
+            train_stage(st, Path(args.out), lib, config=args.config, steps=args.steps, batch=args.batch,
+                        lr=args.lr, seed=args.seed, minutes=args.minutes, progress=not args.no_progress)
+    except RemogenError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        if dist.is_initialized():
+            dist.destroy_process_group()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,128 @@
+"""Training batches: canonicalised history/future segments plus their interaction cues.
+
+A sample is a window of H + F frames of a clip, canonicalised on its first frame (exactly what the
+session does online). HHI samples add the partner's recent joints in that frame, with a random lag of
+up to one segment because online the diffusion runs ahead on stale partner frames; HSI samples add the
+ego-local occupancy and the goal. FWSR samples add, for a random frame f of the future, the latest H
+real frames and partner frames as the session sees them at frame f.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from ..config import ModelConfig
+from ..data.library import ClipLibrary
+from ..features import FeatureStats, canonicalize, to_canonical, world_points_to_canonical
+from ..skeleton import NUM_JOINTS, forward_kinematics
+
+
+@dataclass
+class Batch:
+    hist: torch.Tensor                  # (B, H, D) normalised canonical
+    fut: torch.Tensor                   # (B, F, D)
+    text: list[str]
+    partner: torch.Tensor | None = None  # (B, W, 22, 3) canonical
+    present: torch.Tensor | None = None  # (B, W) bool
+    occupancy: torch.Tensor | None = None  # (B, R, R, R)
+    goal: torch.Tensor | None = None     # (B, 3) canonical
+    frame: torch.Tensor | None = None    # (B,) FWSR frame index f
+    recent: torch.Tensor | None = None   # (B, H, D) normalised latest real frames before f
+    recent_partner: torch.Tensor | None = None  # (B, H, 22, 3)
+    recent_present: torch.Tensor | None = None  # (B, H)
+
+
+class SegmentSampler:
+    """Random segments from a set of clips (optionally with HHI pairs or HSI scenes)."""
+
+    def __init__(self, lib: ClipLibrary, clip_ids: list[int], cfg: ModelConfig, stats: FeatureStats,
+                 seed: int = 0, pairs: list | None = None, scenes: list | None = None) -> None:
+        self.lib, self.cfg, self.stats = lib, cfg, stats
+        self.pairs, self.scenes = pairs, scenes
+        self.span = cfg.history + cfg.future
+        if pairs is not None:
+            items = [(p.ego, k) for k, p in enumerate(pairs)]
+        elif scenes is not None:
+            items = [(sc.ego, k) for k, sc in enumerate(scenes)]
+        else:
+            items = [(i, -1) for i in clip_ids]
+        # features have frames - 1 rows; keep clips that hold at least one whole segment
+        self.items = [(i, k) for i, k in items if lib.frames(i) - 1 >= self.span]
+        if not self.items:
+            raise ValueError(f"no clip is long enough for a {self.span}-frame segment")
+        weights = np.array([lib.frames(i) - self.span for i, _ in self.items], np.float64)
+        self.weights = torch.from_numpy(weights / weights.sum())
+        self.gen = torch.Generator().manual_seed(seed)
+        self._partner_cache: dict[int, torch.Tensor] = {}
+
+    def _partner_world(self, k: int) -> torch.Tensor:
+        if k not in self._partner_cache:
+            self._partner_cache[k] = torch.from_numpy(np.asarray(self.pairs[k].partner, np.float32))
+        return self._partner_cache[k]
+
+    def sample(self, n: int, fwsr: bool = False) -> Batch:
+        cfg, h, f = self.cfg, self.cfg.history, self.cfg.future
+        picks = torch.multinomial(self.weights, n, replacement=True, generator=self.gen).tolist()
+        hist, fut, texts, partners, presents, occs, goals = [], [], [], [], [], [], []
+        frames, recents, rpartners, rpresents = [], [], [], []
+        for p in picks:
+            clip, k = self.items[p]
+            feats = self.lib.features(clip)
+            s = int(torch.randint(0, feats.shape[0] - self.span + 1, (1,), generator=self.gen))
+            seg, rot, trans = canonicalize(feats[s:s + self.span])
+            seg = self.stats.normalize(seg)
+            hist.append(seg[:h])
+            fut.append(seg[h:])
+            texts.append(self.lib.captions[clip])
+            if self.pairs is not None:
+                lag = int(torch.randint(0, f + 1, (1,), generator=self.gen))
+                end = s + h - 1 - lag  # last partner frame seen by the diffusion
+                pw, pr = self._partner_window(k, end, cfg.partner_window, rot, trans)
+                partners.append(pw)
+                presents.append(pr)
+            if self.scenes is not None:
+                sc = self.scenes[k]
+                m = np.eye(4, dtype=np.float32)
+                m[:3, :3], m[:3, 3] = rot.numpy(), trans.numpy()
+                occs.append(torch.from_numpy(np.asarray(
+                    sc.grid().sample_ego(m, bounds=cfg.scene_bounds, resolution=cfg.voxel_resolution), np.float32)))
+                goals.append(world_points_to_canonical(torch.as_tensor(sc.goal, dtype=torch.float32).view(1, 3),
+                                                       rot, trans)[0])
+            if fwsr:
+                fi = int(torch.randint(1, f, (1,), generator=self.gen))
+                frames.append(fi)
+                # the H real frames before future frame fi, in the segment's canonical frame
+                recents.append(self.stats.normalize(to_canonical(feats[s + fi:s + fi + h], rot, trans)))
+                if self.pairs is not None:
+                    pw, pr = self._partner_window(k, s + h + fi, h, rot, trans)
+                else:
+                    pw, pr = torch.zeros(h, NUM_JOINTS, 3), torch.zeros(h, dtype=torch.bool)
+                rpartners.append(pw)
+                rpresents.append(pr)
+        batch = Batch(torch.stack(hist), torch.stack(fut), texts)
+        if partners:
+            batch.partner, batch.present = torch.stack(partners), torch.stack(presents)
+        if occs:
+            batch.occupancy, batch.goal = torch.stack(occs), torch.stack(goals)
+        if fwsr:
+            batch.frame = torch.tensor(frames)
+            batch.recent = torch.stack(recents)
+            batch.recent_partner, batch.recent_present = torch.stack(rpartners), torch.stack(rpresents)
+        return batch
+
+    def _partner_window(self, k: int, end: int, w: int, rot: torch.Tensor, trans: torch.Tensor):
+        """Partner joints of frames end-w+1..end in the canonical frame; frames before 0 are absent."""
+        world = self._partner_world(k)
+        idx = torch.arange(end - w + 1, end + 1)
+        present = (idx >= 0) & (idx < world.shape[0])
+        pts = world[idx.clamp(0, world.shape[0] - 1)]
+        can = world_points_to_canonical(pts, rot, trans) * present.view(-1, 1, 1)
+        return can, present
+
+
+def world_joints(lib: ClipLibrary, clip: int) -> torch.Tensor:
+    """(T, 22, 3) FK joints of a library clip."""
+    rot, pel = lib.pose(clip)
+    return forward_kinematics(rot, pel)[0]

@@ -1,0 +1,101 @@
+"""The five training stages as loss modules. Each freezes every stage before it (paper, sec. 3).
+
+    vae    motion VAE: reconstruction + KL
+    prior  latent denoiser (x0 prediction): latent loss + reconstruction through the frozen decoder
+    hhi    Meta-Interaction Module for partners (prior frozen), same objectives, partner context
+    hsi    Meta-Interaction Module for scenes and goals, same objectives, occupancy + goal context
+    fwsr   frame-wise latent refinement (everything else frozen): the refined decode of frame f must
+           match the real frame f given the latest real history and partner frames
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from ..model import Contexts, ReMoGenModel
+from .samples import Batch
+
+STAGES = ("vae", "prior", "hhi", "hsi", "fwsr")
+KL_WEIGHT = 1e-4
+TEXT_DROP = 0.1  # classifier-free guidance needs the model to also learn without text
+
+
+def trainable_module(model: ReMoGenModel, stage: str) -> nn.Module:
+    return {"vae": model.vae, "prior": model.denoiser, "hhi": model.mims["hhi"], "hsi": model.mims["hsi"],
+            "fwsr": model.fwsr}[stage]
+
+
+def freeze_for(model: ReMoGenModel, stage: str) -> list[nn.Parameter]:
+    """Only the stage's own module trains; frozen modules stay in eval mode (no dropout)."""
+    model.eval()
+    for p in model.parameters():
+        p.requires_grad_(False)
+    mod = trainable_module(model, stage)
+    mod.train()
+    params = list(mod.parameters())
+    for p in params:
+        p.requires_grad_(True)
+    return params
+
+
+class StageLoss(nn.Module):
+    """forward(batch) -> (loss, parts); wrapping this module in DDP gives data-parallel training."""
+
+    def __init__(self, model: ReMoGenModel, stage: str) -> None:
+        super().__init__()
+        self.model, self.stage = model, stage
+
+    def forward(self, batch: Batch, gen: torch.Generator) -> tuple[torch.Tensor, dict[str, float]]:
+        return getattr(self, f"_{self.stage if self.stage in ('vae', 'fwsr') else 'denoise'}")(batch, gen)
+
+    def _vae(self, b: Batch, gen: torch.Generator):
+        vae = self.model.vae
+        mu, logvar = vae.encode(b.hist, b.fut)
+        z = mu + torch.randn(mu.shape, generator=gen) * torch.exp(0.5 * logvar)
+        rec = nn.functional.smooth_l1_loss(vae.decode(b.hist, z), b.fut)
+        kl = 0.5 * (mu.pow(2) + logvar.exp() - 1 - logvar).mean()
+        return rec + KL_WEIGHT * kl, {"rec": float(rec.detach()), "kl": float(kl.detach())}
+
+    def text_tokens(self, b: Batch, gen: torch.Generator) -> torch.Tensor:
+        m = self.model
+        emb = m.text_encoder.encode(b.text)
+        drop = torch.rand(len(b.text), generator=gen) < TEXT_DROP
+        return m.denoiser.text_tokens(emb, drop)
+
+    def contexts(self, b: Batch) -> tuple[Contexts, dict[str, float]]:
+        m = self.model
+        if self.stage == "hhi":
+            return m.encode_contexts(b.partner, b.present, None, None, {"hhi": 1.0}), {"hhi": 1.0}
+        if self.stage == "hsi":
+            return m.encode_contexts(None, None, b.occupancy, b.goal, {"hsi": 1.0}), {"hsi": 1.0}
+        return Contexts({}), {}
+
+    def _denoise(self, b: Batch, gen: torch.Generator):
+        m = self.model
+        with torch.no_grad():
+            z0, _ = m.vae.encode(b.hist, b.fut)
+        t = torch.randint(0, m.cfg.diffusion_steps, (z0.shape[0],), generator=gen)
+        z_t = m.schedule.q_sample(z0, t, torch.randn(z0.shape, generator=gen))
+        ctx, alpha = self.contexts(b)
+        x0 = m.denoiser(z_t, t, b.hist, self.text_tokens(b, gen), m.injector(ctx, alpha))
+        latent = nn.functional.mse_loss(x0, z0)
+        rec = nn.functional.smooth_l1_loss(m.vae.decode(b.hist, x0), b.fut)
+        return latent + rec, {"latent": float(latent.detach()), "rec": float(rec.detach())}
+
+    def _fwsr(self, b: Batch, gen: torch.Generator):
+        m = self.model
+        with torch.no_grad():  # the segment latent as the frozen generator makes it online
+            text = m.text_encoder.encode(b.text)
+            ctx = m.encode_contexts(b.partner, b.present, None, None, {"hhi": 1.0}) \
+                if b.partner is not None else Contexts({})
+            z0 = m.sample_latent(b.hist, text, ctx, {"hhi": 1.0}, 5.0, gen)
+        frame = b.frame
+        z = m.fwsr(z0, b.recent, b.recent_partner, b.recent_present, frame)
+        dec = m.vae.decode(b.hist, z)
+        idx = torch.arange(dec.shape[0])
+        target = nn.functional.smooth_l1_loss(dec[idx, frame], b.fut[idx, frame])
+        # the later frames of the refined decode matter too (they seed the next refinements)
+        later = (torch.arange(dec.shape[1]).unsqueeze(0) >= frame.unsqueeze(1)).float().unsqueeze(-1)
+        rest = (nn.functional.smooth_l1_loss(dec, b.fut, reduction="none") * later).sum() / \
+            (later.sum() * dec.shape[-1])
+        return target + 0.5 * rest, {"frame": float(target.detach()), "later": float(rest.detach())}
