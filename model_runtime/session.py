@@ -234,12 +234,14 @@ class ReactionSession:
             self._job = self._new_job(predicted)
         f = seg["f"]
         if self._fwsr and f >= 1:
-            hist_n = self.model.stats.normalize(to_canonical(self._hist_world, seg["rot"], seg["trans"])).unsqueeze(0)
+            # the latest H emitted frames, already canonical and normalised in this segment's frame
+            recent = seg["emitted"][-self.cfg.history:].unsqueeze(0)
             partner, present = self._partner_window(seg["rot"], seg["trans"], self.cfg.history)
-            z = self.model.refine(seg["z0"], hist_n, partner, present, f)
+            z = self.model.refine(seg["z0"], recent, partner, present, f)
             feat_n = self.model.decode(seg["hist_n"], z)[0, f]
         else:
             feat_n = seg["future"][0, f]
+        seg["emitted"] = torch.cat((seg["emitted"], feat_n.unsqueeze(0)), 0)
         self._job.advance(self._steps_at[f])
         seg["f"] = f + 1
         return to_world(self.model.stats.denormalize(feat_n).unsqueeze(0), seg["rot"], seg["trans"])[0]
@@ -262,7 +264,7 @@ class ReactionSession:
         rot, trans = canonical_frame(feature_joints(self._hist_world[0]))
         hist_n = self.model.stats.normalize(to_canonical(self._hist_world, rot, trans)).unsqueeze(0)
         return {"rot": rot, "trans": trans, "hist_n": hist_n, "z0": z0,
-                "future": self.model.decode(hist_n, z0), "f": 0}
+                "future": self.model.decode(hist_n, z0), "f": 0, "emitted": hist_n[0]}
 
     def _new_job(self, hist_world: torch.Tensor) -> DiffusionJob:
         """A diffusion job for the segment that starts after `hist_world` (real or predicted)."""

@@ -228,20 +228,15 @@ def forward_kinematics_np(local_rot: np.ndarray, pelvis: np.ndarray) -> np.ndarr
 def matrix_to_quat_np(m: np.ndarray) -> np.ndarray:
     """(..., 3, 3) -> (..., 4) w-first, w >= 0 (same branch choice as matrix_to_quat)."""
     m00, m11, m22 = m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]
-    cands = np.stack((1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22), -1)
-    best = cands.argmax(-1)
-    s = np.sqrt(np.maximum(cands, 1e-12))
     r21, r12, r02, r20, r10, r01 = m[..., 2, 1], m[..., 1, 2], m[..., 0, 2], m[..., 2, 0], m[..., 1, 0], m[..., 0, 1]
-    q = np.empty(m.shape[:-2] + (4,), dtype=m.dtype)
-    for k, (sk, row) in enumerate((
-        (s[..., 0], lambda s_: (s_, (r21 - r12) / s_, (r02 - r20) / s_, (r10 - r01) / s_)),
-        (s[..., 1], lambda s_: ((r21 - r12) / s_, s_, (r01 + r10) / s_, (r02 + r20) / s_)),
-        (s[..., 2], lambda s_: ((r02 - r20) / s_, (r01 + r10) / s_, s_, (r12 + r21) / s_)),
-        (s[..., 3], lambda s_: ((r10 - r01) / s_, (r02 + r20) / s_, (r12 + r21) / s_, s_)),
-    )):
-        sel = best == k
-        if sel.any():
-            q[sel] = np.stack(row(sk), -1)[sel]
-    q *= 0.5
-    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    # the four standard candidates (each scaled by 4|component|), stacked; keep the best-conditioned one
+    cand = np.stack((
+        np.stack((1 + m00 + m11 + m22, r21 - r12, r02 - r20, r10 - r01), -1),
+        np.stack((r21 - r12, 1 + m00 - m11 - m22, r01 + r10, r02 + r20), -1),
+        np.stack((r02 - r20, r01 + r10, 1 - m00 + m11 - m22, r12 + r21), -1),
+        np.stack((r10 - r01, r02 + r20, r12 + r21, 1 - m00 - m11 + m22), -1),
+    ), -2)
+    diag = np.stack((cand[..., 0, 0], cand[..., 1, 1], cand[..., 2, 2], cand[..., 3, 3]), -1)
+    q = np.take_along_axis(cand, diag.argmax(-1)[..., None, None], -2)[..., 0, :]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     return np.where(q[..., :1] < 0, -q, q)
