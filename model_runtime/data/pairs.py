@@ -314,7 +314,9 @@ class _Clips:
 def _hhi_kinds(path: PathInfo, caption: str) -> list[str]:
     """Rules that fit a clip, its defining one first."""
     if path.turning:
-        return ["avoid_blocker", "approach_face", "follow"]
+        # approach_face first: on a turning walk the partner waits where the turn leads, the only
+        # "turn towards someone" signal in the data (it has no in-place turns); avoid_blocker next
+        return ["approach_face", "avoid_blocker", "follow"]
     if path.moving:
         return ["approach_face", "follow"]
     if is_gesture(caption) and path.travel < MOVING_DISTANCE:
