@@ -73,3 +73,12 @@ def test_two_process_ddp_with_gloo(tmp_path, lib):
     assert res.returncode == 0, res.stderr[-2000:]
     model = load_model(tmp_path / "ddp" / "model.pt")
     assert model.meta["stages"]["vae"]["world_size"] == 2 and model.meta["stages"]["vae"]["steps"] == 3
+
+
+def test_all_five_stages_run_in_order(tmp_path, lib):
+    out = tmp_path / "all"
+    for stage in ("vae", "prior", "hhi", "hsi", "fwsr"):
+        train_stage(stage, out, lib, config="tiny", steps=2, batch=4, val_every=2, val_batches=1, progress=False)
+    model = load_model(out / "model.pt")
+    assert list(model.meta["stages"]) == ["vae", "prior", "hhi", "hsi", "fwsr"]
+    assert float(model.fwsr.sensitivity.mean()) == pytest.approx(1.0, rel=1e-4)   # computed, normalised
