@@ -178,3 +178,61 @@ def test_captions():
     assert bandai_caption("walk", "normal") == "a person walks forward"
     assert hdm05_caption("walkRightCircle4StepsRstart") == "a person walks in a circle to the right"
     assert cmu_caption('"walk"') == "a person: walk"
+
+
+ASF = """:version 1.10
+:name tiny
+:units
+  mass 1.0
+  length 0.45
+  angle deg
+:root
+   order TX TY TZ RX RY RZ
+   axis XYZ
+   position 0 0 0
+   orientation 0 0 0
+:bonedata
+  begin
+     id 1
+     name upper
+     direction 0 1 0
+     length 10
+     axis 0 0 0 XYZ
+     dof rx ry rz
+  end
+  begin
+     id 2
+     name lower
+     direction 1 0 0
+     length 5
+     axis 0 0 90 XYZ
+     dof rz
+  end
+:hierarchy
+  begin
+    root upper
+    upper lower
+  end
+"""
+
+
+def test_asf_amc_forward_kinematics(tmp_path):
+    from model_runtime.data.asf_amc import asf_amc_positions, read_amc, read_asf
+    (tmp_path / "s.asf").write_text(ASF)
+    (tmp_path / "s_01.amc").write_text(":FULLY-SPECIFIED\n:DEGREES\n1\nroot 1 2 3 0 0 0\nupper 0 0 90\nlower 0\n"
+                                       "2\nroot 1 2 3 0 0 0\nupper 0 0 0\nlower 90\n")
+    skel = read_asf(tmp_path / "s.asf")
+    starts, ends, names = asf_amc_positions(skel, read_amc(tmp_path / "s_01.amc", skel))
+    assert names == ["hip", "upper", "lower"]
+    # frame 0: 'upper' (+Y, 10) turned 90 deg about Z points to -X; 'lower' (+X, 5) turns with it -> +Y
+    assert np.allclose(ends[0, 1], [1 - 10, 2, 3], atol=1e-9)
+    assert np.allclose(ends[0, 2], [1 - 10, 2 + 5, 3], atol=1e-9)
+    assert np.allclose(starts[0, 2], ends[0, 1])
+    # frame 1: 'lower' rotates 90 deg about its own axis frame (its local Z = world Z here) -> +Y
+    assert np.allclose(ends[1, 2], [1, 2 + 10 + 5, 3], atol=1e-9)
+
+
+def test_amc_needs_its_skeleton(tmp_path):
+    (tmp_path / "x_01.amc").write_text(":DEGREES\n1\nroot 0 0 0 0 0 0\n")
+    with pytest.raises(InputError, match="no skeleton"):
+        load_motion(tmp_path / "x_01.amc")

@@ -62,9 +62,13 @@ def _units_to_metres(hip_height: float) -> float:
                      "pass a bone map and check the file")
 
 
+AMC_DEFAULT_FPS = 120.0  # AMC files carry no frame rate; the CMU captures are 120 fps
+
+
 def load_motion(path: str | Path, fps: float | None = None, bone_map: dict[str, str] | None = None,
-                caption: str | None = None) -> Motion:
-    """Read a .bvh or AMASS-style .npz, retarget to SMPL-X 22 joints and resample to 10 fps.
+                caption: str | None = None, asf: str | Path | None = None) -> Motion:
+    """Read a .bvh, an Acclaim .amc (+ its .asf) or an AMASS-style .npz, retarget to the SMPL-X 22 joints
+    and resample to 10 fps.
 
     fps overrides the file's frame rate (some headers are wrong, e.g. CMU amc2bvh files say 30 for 120).
     """
@@ -72,10 +76,30 @@ def load_motion(path: str | Path, fps: float | None = None, bone_map: dict[str, 
     suffix = path.suffix.lower()
     if suffix == ".bvh":
         return _load_bvh(path, fps, bone_map, caption)
+    if suffix == ".amc":
+        return _load_amc(path, Path(asf) if asf else _find_asf(path), fps, bone_map, caption)
     if suffix == ".npz":
         from .amass import load_amass
         return load_amass(path, fps, caption)
-    raise InputError(f"{path.name}: unknown motion file type '{suffix}'; use .bvh or an AMASS .npz")
+    raise InputError(f"{path.name}: unknown motion file type '{suffix}'; use .bvh, .amc (+ .asf) or an AMASS .npz")
+
+
+def _find_asf(amc: Path) -> Path:
+    """The skeleton beside an AMC file: '<subject>.asf' for '<subject>_<trial>.amc', else the only .asf."""
+    subject = amc.parent / (amc.stem.split("_")[0] + ".asf")
+    if subject.exists():
+        return subject
+    found = sorted(amc.parent.glob("*.asf"))
+    if len(found) == 1:
+        return found[0]
+    raise InputError(f"no skeleton for {amc.name}: put its .asf beside it or pass load_motion(..., asf=PATH)")
+
+
+def _load_amc(path: Path, asf: Path, fps: float | None, bone_map: dict | None, caption: str | None) -> Motion:
+    from .asf_amc import asf_amc_positions, read_amc, read_asf
+    skel = read_asf(asf)
+    starts, ends, names = asf_amc_positions(skel, read_amc(path, skel))
+    return _retarget_positions(path, starts, ends, names, fps or AMC_DEFAULT_FPS, bone_map, caption)
 
 
 def _load_bvh(path: Path, fps: float | None, bone_map: dict | None, caption: str | None) -> Motion:
@@ -83,17 +107,21 @@ def _load_bvh(path: Path, fps: float | None, bone_map: dict | None, caption: str
     if leading_rest_frame(m):
         warnings.warn(f"{path.name}: frame 0 is an added rest pose; dropped it", stacklevel=3)
         m = drop_first_frame(m)
-    names = [j.name for j in m.joints]
-    if bone_map is None:
-        guess = guess_bone_map(names)
-        bone_map = guess.mapping
-    validate_bone_map(bone_map, names, rig=path.name)
     pos, ends = m.world_positions()
+    return _retarget_positions(path, pos, ends, [j.name for j in m.joints], float(fps) if fps else m.fps,
+                               bone_map, caption)
+
+
+def _retarget_positions(path: Path, pos: np.ndarray, ends: np.ndarray, names: list[str], src_fps: float,
+                        bone_map: dict | None, caption: str | None) -> Motion:
+    """Source joint positions (Y-up, any unit) -> SMPL-X motion at 10 fps."""
+    if bone_map is None:
+        bone_map = guess_bone_map(names).mapping
+    validate_bone_map(bone_map, names, rig=path.name)
     raw = mapped_positions(pos, ends, names, bone_map)
     hips = 0.5 * (raw[:, 1] + raw[:, 2])
     feet = raw[:, [7, 8, 10, 11]]
     unit = _units_to_metres(float(np.median(hips[:, 1] - feet[..., 1].min(axis=1))))
-    src_fps = float(fps) if fps else m.fps
     targets = resample_positions(raw * unit, src_fps)
     if targets.shape[0] < 2:
         raise InputError(f"{path.name} is shorter than two frames at 10 fps")
