@@ -1,0 +1,141 @@
+"""Access to model_runtime and PyTorch, imported lazily.
+
+Nothing here imports torch at module import time: registering the add-on must work (and the panel must
+say why nothing runs) when PyTorch is missing. The built extension carries its own copy of
+model_runtime as a sub-package (``<ext>.model_runtime``) so that it never picks up, or clashes with, a
+``model_runtime`` installed elsewhere; the source tree uses the top-level package.
+"""
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import os
+import sys
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+_HERE = Path(__file__).resolve().parent
+_VENDORED = (_HERE / "model_runtime").is_dir()
+RUNTIME_PACKAGE = f"{__package__}.model_runtime" if _VENDORED else "model_runtime"
+
+# Environment override for the model file (CI, batch machines); the preferences win when set.
+MODEL_ENV = "REMOGEN_MODEL_FILE"
+
+
+class UserError(Exception):
+    """A predictable problem reported to the user as one line (no traceback)."""
+
+
+def private_site_packages(create: bool = False) -> Path | None:
+    """The extension's private folder that the "Install PyTorch" button installs into."""
+    try:
+        import bpy
+    except ImportError:
+        return None
+    try:
+        # Only an installed extension (bl_ext.<repo>.<id>) has a user folder of its own.
+        p = bpy.utils.extension_path_user(__package__, path="site-packages", create=create)
+    except (ValueError, AttributeError, RuntimeError):
+        p = bpy.utils.user_resource("EXTENSIONS", path=os.path.join(".remogen", "site-packages"), create=create)
+    return Path(p) if p else None
+
+
+def add_private_site_packages() -> None:
+    """Make a PyTorch installed by the preferences button importable."""
+    p = private_site_packages()
+    if p is not None and p.is_dir() and str(p) not in sys.path:
+        sys.path.append(str(p))  # appended: a torch already on sys.path keeps priority
+        importlib.invalidate_caches()
+
+
+_torch_state: dict[str, Any] = {"checked": False, "error": None}
+
+
+def torch_error() -> str | None:
+    """None when PyTorch can be imported, else a one-line reason. Cheap after the first call."""
+    if not _torch_state["checked"]:
+        add_private_site_packages()
+        if importlib.util.find_spec("torch") is None:
+            _torch_state["error"] = ("PyTorch is not installed: press 'Install PyTorch' in the add-on "
+                                     "preferences, or install the offline zip that bundles it")
+        else:
+            _torch_state["error"] = None
+        _torch_state["checked"] = True
+    return _torch_state["error"]
+
+
+def forget_torch_check() -> None:
+    _torch_state["checked"] = False
+
+
+def runtime(name: str = "") -> ModuleType:
+    """Import model_runtime (or one of its sub-modules); raises UserError when torch is missing."""
+    err = torch_error()
+    if err:
+        raise UserError(err)
+    try:
+        return importlib.import_module(RUNTIME_PACKAGE + ("." + name if name else ""))
+    except ImportError as exc:
+        raise UserError(f"PyTorch is not usable ({exc}); reinstall it from the add-on preferences") from None
+
+
+def remogen_errors() -> tuple[type[BaseException], ...]:
+    """The exception types that carry a one-line user message."""
+    try:
+        errors = runtime("errors")
+    except UserError:
+        return (UserError,)
+    return (UserError, errors.RemogenError)
+
+
+# ---------------------------------------------------------------------------- model cache
+
+_model_cache: dict[str, Any] = {"key": None, "model": None}
+
+
+def settings_from_prefs() -> tuple[str, int]:
+    """(model file or "" for the shipped weights, CPU threads or 0 for automatic)."""
+    from .preferences import get_prefs
+    prefs = get_prefs()
+    path = (prefs.model_file if prefs is not None else "") or os.environ.get(MODEL_ENV, "")
+    threads = int(prefs.cpu_threads) if prefs is not None else 0
+    return path, threads
+
+
+def get_model(path: str | None = None, threads: int | None = None) -> Any:
+    """The model for the current preferences, loaded once and reused while the file is unchanged."""
+    if path is None or threads is None:
+        p, t = settings_from_prefs()
+        path = p if path is None else path
+        threads = t if threads is None else threads
+    rt = runtime()
+    if threads and threads > 0:
+        import torch
+        torch.set_num_threads(int(threads))
+    resolved = _resolve_model_path(path)
+    try:
+        stamp = os.stat(resolved).st_mtime_ns if resolved else None
+    except OSError:
+        stamp = None
+    key = f"{resolved}|{stamp}"
+    if _model_cache["key"] != key:
+        _model_cache["model"] = rt.load_model(resolved or None)
+        _model_cache["key"] = key
+    return _model_cache["model"]
+
+
+def clear_model_cache() -> None:
+    _model_cache["key"] = None
+    _model_cache["model"] = None
+
+
+def _resolve_model_path(path: str) -> str:
+    if not path:
+        return ""
+    try:
+        import bpy
+        path = bpy.path.abspath(path)  # "//model.pt" is relative to the .blend
+    except ImportError:
+        pass
+    return os.path.abspath(os.path.expanduser(path))

@@ -1,0 +1,30 @@
+"""Headless batch with only the `bpy` module (no Blender install):
+
+    python -m remogen_blender.batch bake --blend scene.blend --partner Partner --frames 1 240 --output out.blend
+
+Same arguments as `blender -b -c remogen ...`. Ends with os._exit: with Python objects still registered,
+the bpy 4.2 module segfaults and 4.5 hangs at interpreter exit (BLENDER_NOTES §4).
+"""
+from __future__ import annotations
+
+import os
+import sys
+from typing import Sequence
+
+
+def main(argv: Sequence[str]) -> int:
+    import bpy  # noqa: F401  - must come before the add-on's modules
+    from . import register, unregister
+    from .cli import cli_main
+    register()
+    try:
+        return cli_main(argv)
+    finally:
+        unregister()
+
+
+if __name__ == "__main__":
+    rc = main(sys.argv[1:])
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(rc)

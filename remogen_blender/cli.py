@@ -1,0 +1,151 @@
+"""`blender -b -c remogen bake ...` (registered with bpy.utils.register_cli_command) and the same for batch.py.
+
+`cli_main(argv) -> int` parses its own arguments and opens the .blend itself when given `--blend`, so it
+behaves the same whether Blender loaded a file before the command runs or not.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from typing import Sequence
+
+USAGE_EXAMPLE = ('remogen bake --blend scene.blend --partner Partner --scene-collection Props --goal Goal '
+                 '--text "walk to the person and wave" --alpha-hhi 1 --alpha-hsi 0.5 --frames 1 240 --seed 0 '
+                 '--output out.blend')
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="remogen", description="ReMoGen reactive motion for Blender, headless",
+                                epilog="example: " + USAGE_EXAMPLE)
+    sub = p.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("bake", help="generate the ego's reaction for a frame range into a new action")
+    b.add_argument("--blend", help=".blend file to open (default: the file Blender has open)")
+    b.add_argument("--scene", help="scene name (default: the active scene)")
+    b.add_argument("--partner", help="partner armature object (default: the one set in the file)")
+    b.add_argument("--scene-collection", help="collection of scene meshes (default: the one set in the file)")
+    b.add_argument("--goal", help="goal object (default: the one set in the file)")
+    b.add_argument("--ego", help="ego armature (default: the file's; created when there is none)")
+    b.add_argument("--text", help="intent text")
+    b.add_argument("--alpha-hhi", type=float, help="partner influence 0..1")
+    b.add_argument("--alpha-hsi", type=float, help="scene influence 0..1")
+    b.add_argument("--guidance", type=float, help="classifier-free guidance")
+    b.add_argument("--seed", type=int, help="random seed")
+    b.add_argument("--fwsr", dest="fwsr", action="store_true", default=None, help="frame-wise refinement on")
+    b.add_argument("--no-fwsr", dest="fwsr", action="store_false", help="frame-wise refinement off")
+    b.add_argument("--frames", type=int, nargs=2, metavar=("START", "END"), help="frame range (default: scene's)")
+    b.add_argument("--model", help="model file (default: the preferences', else the shipped weights)")
+    b.add_argument("--threads", type=int, default=0, help="CPU threads for PyTorch (0: automatic)")
+    b.add_argument("--output", required=True, help=".blend to save the result to")
+    return p
+
+
+def _err(msg: str) -> int:
+    print(f"remogen: error: {msg}", file=sys.stderr)
+    return 1
+
+
+def cli_main(argv: Sequence[str]) -> int:
+    try:
+        args = _parser().parse_args(list(argv))
+    except SystemExit as exc:   # argparse already printed usage or help
+        return int(exc.code or 0)
+    if args.command == "bake":
+        return _bake(args)
+    return _err(f"unknown command {args.command!r}")
+
+
+def _bake(args: argparse.Namespace) -> int:
+    import os
+    import bpy
+    from . import rig
+    from ._runtime import get_model, remogen_errors
+    from .bake import bake
+
+    try:
+        errors = (ReferenceError, *remogen_errors())
+    except Exception as exc:  # noqa: BLE001 - torch broken in some unexpected way
+        return _err(str(exc))
+    if args.blend:
+        if not os.path.isfile(args.blend):
+            return _err(f"no .blend file at '{args.blend}'")
+        try:
+            bpy.ops.wm.open_mainfile(filepath=os.path.abspath(args.blend))
+        except RuntimeError as exc:
+            return _err(f"cannot open '{args.blend}': {str(exc).strip().splitlines()[-1]}")
+    if args.scene and args.scene not in bpy.data.scenes:
+        return _err(f"no scene '{args.scene}' in the file")
+    scene = bpy.data.scenes[args.scene] if args.scene else bpy.context.scene
+    if bpy.context.window is not None and bpy.context.window.scene != scene:
+        bpy.context.window.scene = scene
+    st = scene.remogen
+    try:
+        _apply(args, scene, st)
+        model = get_model(path=args.model or None, threads=args.threads)
+        if st.ego is None:
+            st.ego = rig.create_ego(bpy.context, location=tuple(scene.cursor.location))
+        f0, f1 = args.frames if args.frames else (scene.frame_start, scene.frame_end)
+        t0 = time.perf_counter()
+        last = [-1]
+
+        def progress(k: int, n: int) -> None:
+            pct = 100 * k // n
+            if pct // 10 != last[0]:
+                last[0] = pct // 10
+                print(f"remogen: baking {pct}%", flush=True)
+
+        res = bake(scene, f0, f1, model=model, progress=progress)
+    except errors as exc:
+        return _err(str(exc))
+    out = os.path.abspath(bpy.path.abspath(args.output))
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=out, copy=True)
+    except RuntimeError as exc:
+        return _err(f"cannot save '{out}': {str(exc).strip().splitlines()[-1]}")
+    print(f"remogen: baked frames {f0}-{f1} ({res.model_frames} model frames, {res.model_fps:.0f}/s, "
+          f"{time.perf_counter() - t0:.1f} s) into action '{res.action.name}'; saved {out}")
+    return 0
+
+
+def _apply(args: argparse.Namespace, scene, st) -> None:
+    """Copy command-line settings into scene.remogen, checking names first."""
+    import bpy
+    from ._runtime import UserError
+
+    def obj(name: str, what: str, armature: bool = False):
+        ob = bpy.data.objects.get(name)
+        if ob is None:
+            raise UserError(f"no object '{name}' for {what} in the file")
+        if armature and ob.type != 'ARMATURE':
+            raise UserError(f"{what} '{name}' is a {ob.type.lower()}, not an armature")
+        return ob
+
+    if args.partner:
+        st.partner = obj(args.partner, "--partner", armature=True)
+    if args.ego:
+        st.ego = obj(args.ego, "--ego", armature=True)
+    if args.goal:
+        st.goal = obj(args.goal, "--goal")
+    if args.scene_collection:
+        coll = bpy.data.collections.get(args.scene_collection)
+        if coll is None:
+            raise UserError(f"no collection '{args.scene_collection}' in the file")
+        st.scene_collection = coll
+    if args.text is not None:
+        st.text = args.text
+    for name in ("alpha_hhi", "alpha_hsi"):
+        v = getattr(args, name)
+        if v is not None:
+            if not 0.0 <= v <= 1.0:
+                raise UserError(f"--{name.replace('_', '-')} must be between 0 and 1, got {v}")
+            setattr(st, name, v)
+    if args.guidance is not None:
+        if args.guidance < 0:
+            raise UserError(f"--guidance must be >= 0, got {args.guidance}")
+        st.guidance = args.guidance
+    if args.seed is not None:
+        if args.seed < 0:
+            raise UserError(f"--seed must be >= 0, got {args.seed}")
+        st.seed = args.seed
+    if args.fwsr is not None:
+        st.use_fwsr = args.fwsr

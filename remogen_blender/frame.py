@@ -1,0 +1,205 @@
+"""The one per-frame function: read the partner -> step the session -> write the ego.
+
+`FrameDriver.update()` is called by the live modal operator (timer), the frame-change handler and the bake
+loop alike. Scene time (any fps, any frame_start) maps to model time, one model frame per 0.1 s; frames
+between two model frames are shown by interpolation (lerp of the pelvis, slerp of the rotations).
+"""
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+import bpy
+import numpy as np
+
+from . import rig
+from ._quat import qslerp
+from ._runtime import UserError, get_model, runtime
+from .scene import SceneCache
+
+MODEL_DT = 0.1          # seconds per model frame (the model runs at 10 fps)
+MAX_CATCH_UP = 1.0      # live: a forward jump longer than this continues from the current pose instead
+_EPS = 1e-6
+
+
+def scene_fps(scene: bpy.types.Scene) -> float:
+    return scene.render.fps / scene.render.fps_base
+
+
+def scene_time(scene: bpy.types.Scene, frame: float | None = None) -> float:
+    """Seconds since the scene's frame_start for `frame` (default: the current frame and subframe)."""
+    f = scene.frame_current + scene.frame_subframe if frame is None else frame
+    return (f - scene.frame_start) / scene_fps(scene)
+
+
+@dataclass
+class Pose:
+    """An ego pose in world space: pelvis position and SMPL-X local quaternions (w first)."""
+    pelvis: np.ndarray            # (3,)
+    local_rotations: np.ndarray   # (22, 4)
+
+
+def interpolate(f0: Any, f1: Any, a: float) -> Pose:
+    """Pose between two EgoFrames (a in [0, 1])."""
+    if f1 is None or a <= _EPS:
+        return Pose(np.asarray(f0.root[:3, 3], np.float64), np.asarray(f0.local_rotations, np.float64))
+    p = (1.0 - a) * np.asarray(f0.root[:3, 3], np.float64) + a * np.asarray(f1.root[:3, 3], np.float64)
+    q = qslerp(np.asarray(f0.local_rotations, np.float64), np.asarray(f1.local_rotations, np.float64), a)
+    return Pose(p, q)
+
+
+class FrameDriver:
+    """A running ReMoGen session bound to one scene's partner, scene collection, goal and ego."""
+
+    def __init__(self, scene: bpy.types.Scene, model: Any = None, keep_frames: int | None = 600) -> None:
+        st = scene.remogen
+        if st.ego is None:
+            raise UserError("No ego armature: press 'Create Ego' in the ReMoGen panel")
+        if st.partner is None:
+            raise UserError("Pick a partner armature in the ReMoGen panel")
+        if st.partner == st.ego:
+            raise UserError("The partner and the ego are the same armature; pick another partner")
+        _check_finite_transform(st.ego, "Ego")
+        self.scene_name = scene.name
+        self.writer = rig.EgoWriter(st.ego)
+        self.reader = self._make_reader(st)
+        self.model = model if model is not None else get_model()
+        rt = runtime()
+        self.session = rt.ReactionSession(self.model, text=st.text, seed=st.seed, alpha=_alpha(st),
+                                          guidance=st.guidance, fwsr=st.use_fwsr, scene=None)
+        root, yaw = self.writer.start_pose()
+        self.session.reset(root_position=root, yaw=yaw)
+        self._applied = (st.text, st.seed, st.alpha_hhi, st.alpha_hsi, st.guidance, st.use_fwsr)
+        self.scene_cache = SceneCache()
+        self.frames: deque = deque(maxlen=keep_frames)   # EgoFrames, newest last
+        self.first_index = 0                              # model index of frames[0]
+        self.anchor = scene_time(scene)                   # scene time of model frame 0 (live)
+        self.last_time = 0.0
+        self.step_ms = 0.0        # the last model step: read partner, scene, session.step
+        self.update_ms = 0.0      # the last update(): steps + interpolation + writing the pose
+
+    # ------------------------------------------------------------------ inputs
+    @staticmethod
+    def _make_reader(st: Any) -> rig.PartnerReader:
+        _check_finite_transform(st.partner, "Partner")
+        if st.bone_map_rig != st.partner.name or len(st.bone_map) == 0:
+            rig.fill_bone_map(st, st.partner)
+        return rig.PartnerReader(st.partner, rig.bone_map_dict(st))
+
+    def _sync_settings(self, st: Any) -> None:
+        """Sliders, text and toggles act on the next model frame."""
+        now = (st.text, st.seed, st.alpha_hhi, st.alpha_hsi, st.guidance, st.use_fwsr)
+        if now == self._applied:
+            return
+        s = self.session
+        if st.text != s.text:
+            s.text = st.text
+        s.alpha = _alpha(st)
+        s.guidance = st.guidance
+        s.fwsr = st.use_fwsr
+        # a new seed only matters for a new run (live restarts, bake resets); the session keeps its own
+        self._applied = now
+
+    def _partner(self, st: Any, depsgraph: bpy.types.Depsgraph) -> np.ndarray:
+        try:
+            partner = st.partner
+        except ReferenceError:
+            partner = None
+        if partner is None:
+            raise UserError(f"Partner '{self.reader.name}' was removed; pick a partner and start again")
+        if partner.name != self.reader.name:      # the user picked another partner while running
+            self.reader = self._make_reader(st)
+        elif self.reader.object != partner:
+            self.reader = self._make_reader(st)
+        return self.reader.read(depsgraph)
+
+    @staticmethod
+    def _goal(st: Any, depsgraph: bpy.types.Depsgraph) -> np.ndarray | None:
+        if st.goal is None:
+            return None
+        m = np.array(st.goal.evaluated_get(depsgraph).matrix_world, dtype=np.float64)
+        return m[:3, 3]
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> Any:
+        """Advance one model frame with the partner, goal and scene as they are now."""
+        t0 = time.perf_counter()
+        st = scene.remogen
+        self._sync_settings(st)
+        partner = self._partner(st, depsgraph)
+        goal = self._goal(st, depsgraph)
+        self.session.scene = self.scene_cache.grid(st.scene_collection, depsgraph)
+        frame = self.session.step(partner=partner, goal=goal)
+        self.frames.append(frame)
+        self.first_index = frame.index - len(self.frames) + 1
+        self.step_ms = (time.perf_counter() - t0) * 1e3
+        return frame
+
+    @property
+    def latest_index(self) -> int:
+        return self.frames[-1].index if self.frames else -1
+
+    def _frame(self, k: int) -> Any:
+        return self.frames[min(max(k - self.first_index, 0), len(self.frames) - 1)]
+
+    def pose_at(self, model_time: float) -> Pose:
+        """The pose at a model time already generated (clamped to the frames kept)."""
+        x = model_time / MODEL_DT
+        k0 = int(math.floor(x + _EPS))
+        a = x - k0
+        if k0 >= self.latest_index or a <= _EPS:
+            return interpolate(self._frame(k0), None, 0.0)
+        return interpolate(self._frame(k0), self._frame(k0 + 1), a)
+
+    def update(self, scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None,
+               model_time: float | None = None, write: bool = True) -> Pose:
+        """THE per-frame function: generate the model frames up to the time shown, then pose the ego.
+
+        model_time None (live): follow the scene clock; a backward jump, or a forward jump of more than
+        MAX_CATCH_UP seconds, continues from the ego's current pose instead of replaying or fast-forwarding.
+        """
+        t0 = time.perf_counter()
+        depsgraph = depsgraph or bpy.context.evaluated_depsgraph_get()
+        if model_time is None:
+            model_time = scene_time(scene) - self.anchor
+            latest_t = self.latest_index * MODEL_DT
+            if model_time < self.last_time - _EPS or model_time > latest_t + MAX_CATCH_UP:
+                self.anchor = scene_time(scene) - (latest_t + MODEL_DT)
+                model_time = latest_t + MODEL_DT
+        need = int(math.ceil(model_time / MODEL_DT - _EPS))
+        while self.latest_index < need:
+            self.step(scene, depsgraph)
+        pose = self.pose_at(model_time)
+        if write:   # the bake keys all frames at the end instead
+            self.writer.write(pose.pelvis, pose.local_rotations)
+        self.last_time = model_time
+        self.update_ms = (time.perf_counter() - t0) * 1e3
+        return pose
+
+    def advance_wall(self, scene: bpy.types.Scene, seconds: float,
+                     depsgraph: bpy.types.Depsgraph | None = None) -> Pose:
+        """Live with the timeline standing still: the ego keeps living in wall-clock time."""
+        self.anchor -= max(0.0, min(seconds, MAX_CATCH_UP))
+        return self.update(scene, depsgraph)
+
+    def restore_rest(self) -> None:
+        self.writer.write_rest()
+
+
+def _alpha(st: Any) -> dict[str, float]:
+    return {"hhi": float(st.alpha_hhi), "hsi": float(st.alpha_hsi)}
+
+
+def _check_finite_transform(ob: bpy.types.Object, what: str) -> None:
+    try:
+        m = np.array(ob.matrix_world, dtype=np.float64)
+    except ReferenceError:
+        raise UserError(f"{what} was deleted") from None
+    if not np.isfinite(m).all():
+        raise UserError(f"{what} '{ob.name}' has a NaN or infinite transform; reset its location, rotation "
+                        "and scale")
+    if abs(np.linalg.det(m[:3, :3])) < 1e-12:
+        raise UserError(f"{what} '{ob.name}' has a zero scale; give it a non-zero scale")

@@ -1,0 +1,180 @@
+"""The live session: one FrameDriver driven by frame changes and (in the UI) a window-manager timer.
+
+This is plain Python state so it works without a window: `remogen.live_start` run from a script or a
+background process follows `scene.frame_set()` through a frame_change_post handler; started from the UI
+(invoke) the modal operator adds a timer that also keeps the ego living while the timeline stands still.
+Any error, Stop, Esc, or loading another file ends it and puts the ego back in its rest pose.
+"""
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import bpy
+from bpy.app.handlers import persistent
+
+from ._runtime import UserError, remogen_errors
+from .frame import FrameDriver, scene_time
+
+
+class LiveState:
+    def __init__(self, driver: FrameDriver, scene: bpy.types.Scene) -> None:
+        self.driver = driver
+        self.scene_name = scene.name
+        self.last_scene_time = scene_time(scene)
+        self.last_wall = time.perf_counter()
+        self.saved_action: tuple[Any, Any] | None = None
+        self.modal = False    # a modal operator with a timer is attached (UI only)
+
+
+_state: LiveState | None = None
+_message: str = ""          # the last status or error line, shown in the panel
+
+
+def is_running() -> bool:
+    return _state is not None
+
+
+def state() -> LiveState | None:
+    return _state
+
+
+def message() -> str:
+    return _message
+
+
+def status_line() -> str:
+    if _state is None:
+        return _message
+    d = _state.driver
+    return f"ReMoGen live: {d.update_ms:.1f} ms/frame (model step {d.step_ms:.1f} ms), model frame {d.latest_index}"
+
+
+def start(context: bpy.types.Context) -> LiveState:
+    """Start (or restart) live on the context's scene. Raises UserError / RemogenError with one line."""
+    global _state, _message
+    if _state is not None:
+        stop("restarted")
+    scene = context.scene
+    driver = FrameDriver(scene)
+    st = LiveState(driver, scene)
+    ego = driver.writer.object
+    ad = ego.animation_data
+    if ad is not None and ad.action is not None:
+        # An action on the ego would overwrite the live pose on every frame; it comes back on stop.
+        st.saved_action = (ad.action, getattr(ad, "action_slot", None))
+        ad.action = None
+    _state = st
+    _add_handlers()
+    try:
+        driver.update(scene, context.evaluated_depsgraph_get())
+    except BaseException as exc:
+        if isinstance(exc, remogen_errors()):
+            stop(str(exc))
+        else:
+            stop(f"{type(exc).__name__}: {exc}")
+        raise
+    _message = "Live running"
+    return st
+
+
+def stop(reason: str = "Stopped") -> None:
+    """End live: handlers off, the ego back at rest, its action (if any) back in place."""
+    global _state, _message
+    st, _state = _state, None
+    _remove_handlers()
+    _message = reason
+    if st is None:
+        return
+    try:
+        st.driver.restore_rest()
+        if st.saved_action is not None:
+            ob = st.driver.writer.object
+            ad = ob.animation_data or ob.animation_data_create()
+            ad.action = st.saved_action[0]
+            if st.saved_action[1] is not None and hasattr(ad, "action_slot"):
+                ad.action_slot = st.saved_action[1]
+    except ReferenceError:   # the file was closed or the ego deleted: nothing to restore
+        pass
+
+
+def tick(context: bpy.types.Context) -> None:
+    """One timer tick (UI): follow the timeline, or keep living in wall time while it stands still."""
+    if _state is None:
+        return
+    scene = context.scene
+    now = time.perf_counter()
+    dt, _state.last_wall = now - _state.last_wall, now
+    if scene.name != _state.scene_name:
+        return
+    t = scene_time(scene)
+    _guarded(lambda: (_state.driver.update(scene, context.evaluated_depsgraph_get())
+                      if t != _state.last_scene_time
+                      else _state.driver.advance_wall(scene, dt, context.evaluated_depsgraph_get())))
+    if _state is not None:
+        _state.last_scene_time = t
+
+
+def _guarded(fn) -> None:
+    """Run a live update; a predictable error stops live with its one-line message, others with their type."""
+    try:
+        fn()
+    except remogen_errors() as exc:
+        stop(f"Live stopped: {exc}")
+        print(f"ReMoGen: {_message}")
+    except ReferenceError:
+        stop("Live stopped: the partner or the ego was deleted")
+        print(f"ReMoGen: {_message}")
+    except Exception as exc:  # anything else must not leave a half-running session behind
+        stop(f"Live stopped: {type(exc).__name__}: {exc}")
+        print(f"ReMoGen: {_message}")
+
+
+# ---------------------------------------------------------------------------- handlers
+
+def _on_frame_change(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> None:
+    if _state is None or scene.name != _state.scene_name:
+        return
+    _guarded(lambda: _state.driver.update(scene, depsgraph))
+    if _state is not None:
+        _state.last_scene_time = scene_time(scene)
+
+
+def _on_depsgraph_update(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> None:
+    if _state is None or scene.name != _state.scene_name:
+        return
+    try:
+        _state.driver.scene_cache.on_depsgraph_update(scene.remogen.scene_collection, depsgraph)
+    except ReferenceError:
+        _state.driver.scene_cache.mark_dirty()
+
+
+@persistent
+def _on_load(*_args: Any) -> None:
+    if _state is not None:
+        stop("Live stopped: another file was loaded")
+
+
+_HANDLERS = (("frame_change_post", _on_frame_change), ("depsgraph_update_post", _on_depsgraph_update),
+             ("load_pre", _on_load))
+
+
+def _add_handlers() -> None:
+    for name, fn in _HANDLERS:
+        lst = getattr(bpy.app.handlers, name)
+        if fn not in lst:
+            lst.append(fn)
+
+
+def _remove_handlers() -> None:
+    for name, fn in _HANDLERS:
+        lst = getattr(bpy.app.handlers, name)
+        while fn in lst:
+            lst.remove(fn)
+
+
+def guard_user_error(exc: BaseException) -> str:
+    """The one line to show for an exception raised by start()."""
+    if isinstance(exc, (UserError,) + remogen_errors()):
+        return str(exc)
+    return f"{type(exc).__name__}: {exc}"

@@ -1,0 +1,214 @@
+"""Operators: create the ego, live start/stop, bake, and bone-map editing. Each reports one line on failure."""
+from __future__ import annotations
+
+import bpy
+from bpy.props import IntProperty
+
+from . import live, rig
+from ._runtime import UserError, remogen_errors
+
+TIMER_INTERVAL = 1.0 / 60.0
+
+
+def _fail(op: bpy.types.Operator, exc: BaseException) -> set[str]:
+    op.report({'ERROR'}, str(exc) if isinstance(exc, remogen_errors()) else f"{type(exc).__name__}: {exc}")
+    return {'CANCELLED'}
+
+
+class REMOGEN_OT_create_ego(bpy.types.Operator):
+    """Create an SMPL-X ego armature with a skinned body at the 3D cursor"""
+    bl_idname = "remogen.create_ego"
+    bl_label = "Create Ego"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        from .preferences import get_prefs
+        prefs = get_prefs()
+        try:
+            ob = rig.create_ego(context, location=tuple(context.scene.cursor.location),
+                                smplx_folder=prefs.smplx_folder if prefs else "")
+        except remogen_errors() as exc:
+            return _fail(self, exc)
+        context.scene.remogen.ego = ob
+        self.report({'INFO'}, f"Created ego '{ob.name}'")
+        return {'FINISHED'}
+
+
+class REMOGEN_OT_live_start(bpy.types.Operator):
+    """React live: follow the partner, the scene and the sliders every frame (Esc or Stop ends it)"""
+    bl_idname = "remogen.live_start"
+    bl_label = "Start Live"
+
+    _timer = None
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return hasattr(context.scene, "remogen")
+
+    def _start(self, context: bpy.types.Context) -> bool:
+        try:
+            live.start(context)
+        except (ReferenceError, *remogen_errors()) as exc:
+            _fail(self, exc)
+            return False
+        return True
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        # Without a window event loop (scripts, background): frame changes drive it.
+        if not self._start(context):
+            return {'CANCELLED'}
+        self.report({'INFO'}, "Live started (follows frame changes)")
+        return {'FINISHED'}
+
+    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        if not self._start(context):
+            return {'CANCELLED'}
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(TIMER_INTERVAL, window=context.window)
+        wm.modal_handler_add(self)
+        live.state().modal = True
+        return {'RUNNING_MODAL'}
+
+    def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        if not live.is_running():          # Stop button, an error in a handler, or a file load
+            return self._finish(context, report=True)
+        if event.type == 'ESC' and event.value == 'PRESS':
+            live.stop("Stopped (Esc)")
+            return self._finish(context)
+        if event.type == 'TIMER' and event.time_duration >= 0 and self._timer is not None:
+            live.tick(context)
+            if not live.is_running():
+                return self._finish(context, report=True)
+            if context.workspace is not None:
+                context.workspace.status_text_set(live.status_line())
+        return {'PASS_THROUGH'}
+
+    def _finish(self, context: bpy.types.Context, report: bool = False) -> set[str]:
+        cleanup_modal(context, self._timer)
+        self._timer = None
+        msg = live.message()
+        if report and msg.startswith("Live stopped:"):
+            self.report({'ERROR'}, msg)
+        return {'CANCELLED'}
+
+    def cancel(self, context: bpy.types.Context) -> None:   # Blender cancels modals on file load / quit
+        live.stop("Live stopped: cancelled")
+        cleanup_modal(context, self._timer)
+        self._timer = None
+
+
+def cleanup_modal(context: bpy.types.Context, timer) -> None:
+    """Remove the modal's timer and status text (safe to call twice, or with no timer)."""
+    if timer is not None:
+        try:
+            context.window_manager.event_timer_remove(timer)
+        except (ReferenceError, ValueError, RuntimeError):
+            pass
+    if context.workspace is not None:
+        context.workspace.status_text_set(None)
+
+
+class REMOGEN_OT_live_stop(bpy.types.Operator):
+    """Stop live and put the ego back in its rest pose"""
+    bl_idname = "remogen.live_stop"
+    bl_label = "Stop"
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return live.is_running()
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        live.stop("Stopped")
+        return {'FINISHED'}
+
+
+class REMOGEN_OT_bake(bpy.types.Operator):
+    """Generate the frame range for the seed and key it into a new action on the ego"""
+    bl_idname = "remogen.bake"
+    bl_label = "Bake"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    frame_start: IntProperty(name="Start", default=-1, description="-1: the scene's start")  # type: ignore
+    frame_end: IntProperty(name="End", default=-1, description="-1: the scene's end")  # type: ignore
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        from .bake import bake
+        if live.is_running():
+            live.stop("Stopped for baking")
+        scene = context.scene
+        f0 = scene.frame_start if self.frame_start < 0 else self.frame_start
+        f1 = scene.frame_end if self.frame_end < 0 else self.frame_end
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
+        try:
+            res = bake(scene, f0, f1, progress=lambda k, n: wm.progress_update(int(100 * k / max(n, 1))))
+        except (ReferenceError, *remogen_errors()) as exc:
+            return _fail(self, exc)
+        finally:
+            wm.progress_end()
+        kept = f"; previous action '{res.replaced}' kept" if res.replaced else ""
+        self.report({'INFO'}, f"Baked frames {f0}-{f1} ({res.model_frames} model frames, {res.model_fps:.0f}/s) "
+                              f"into '{res.action.name}'{kept}")
+        return {'FINISHED'}
+
+
+class REMOGEN_OT_guess_bone_map(bpy.types.Operator):
+    """Detect the partner's bone map from its bone names (SMPL-X, Mixamo, BVH/CMU, Rigify, Bandai, ...)"""
+    bl_idname = "remogen.guess_bone_map"
+    bl_label = "Detect Bone Map"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        st = context.scene.remogen
+        if st.partner is None:
+            self.report({'ERROR'}, "Pick a partner armature first")
+            return {'CANCELLED'}
+        try:
+            missing = rig.fill_bone_map(st, st.partner)
+        except remogen_errors() as exc:
+            return _fail(self, exc)
+        if missing:
+            self.report({'WARNING'}, f"Partner '{st.partner.name}': no bones found for {', '.join(missing[:6])}"
+                                     f"{' ...' if len(missing) > 6 else ''}; map them by hand")
+        else:
+            self.report({'INFO'}, f"Bone map: {st.bone_map_family}, all 22 joints mapped")
+        return {'FINISHED'}
+
+
+class REMOGEN_OT_bone_from_active(bpy.types.Operator):
+    """Map the selected SMPL-X joint to the partner's active bone"""
+    bl_idname = "remogen.bone_from_active"
+    bl_label = "Use Active Bone"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        st = context.scene.remogen
+        if st.partner is None or not (0 <= st.bone_map_index < len(st.bone_map)):
+            self.report({'ERROR'}, "Pick a partner and a bone-map row first")
+            return {'CANCELLED'}
+        bone = st.partner.data.bones.active
+        if bone is None:
+            self.report({'ERROR'}, f"Partner '{st.partner.name}' has no active bone; select one in Pose Mode")
+            return {'CANCELLED'}
+        st.bone_map[st.bone_map_index].bone = bone.name
+        st.bone_map_rig = st.partner.name
+        return {'FINISHED'}
+
+
+CLASSES = (REMOGEN_OT_create_ego, REMOGEN_OT_live_start, REMOGEN_OT_live_stop, REMOGEN_OT_bake,
+           REMOGEN_OT_guess_bone_map, REMOGEN_OT_bone_from_active)
+
+
+def register() -> None:
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister() -> None:
+    if live.is_running():
+        live.stop("Add-on disabled")
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)
+
+
+__all__ = ["CLASSES", "register", "unregister", "UserError"]
