@@ -17,11 +17,13 @@ import numpy as np
 
 from . import rig
 from ._quat import qslerp
-from ._runtime import UserError, get_model, runtime
+from ._runtime import UserError, get_model, runtime, torch_error
 from .scene import SceneCache
 
 MODEL_DT = 0.1          # seconds per model frame (the model runs at 10 fps)
 MAX_CATCH_UP = 1.0      # live: a forward jump longer than this continues from the current pose instead
+# Blender clamps inf to float32 max, which passes a finiteness check and overflows later: bound positions.
+MAX_COORD = 1.0e5
 _EPS = 1e-6
 
 
@@ -56,6 +58,8 @@ class FrameDriver:
 
     def __init__(self, scene: bpy.types.Scene, model: Any = None, keep_frames: int | None = 600) -> None:
         st = scene.remogen
+        if torch_error():                       # the most basic problem first
+            raise UserError(torch_error())
         if st.ego is None:
             raise UserError("No ego armature: press 'Create Ego' in the ReMoGen panel")
         if st.partner is None:
@@ -114,13 +118,16 @@ class FrameDriver:
             self.reader = self._make_reader(st)
         elif self.reader.object != partner:
             self.reader = self._make_reader(st)
-        return self.reader.read(depsgraph)
+        joints = self.reader.read(depsgraph)
+        _check_position(joints, f"Partner '{self.reader.name}'")
+        return joints
 
     @staticmethod
     def _goal(st: Any, depsgraph: bpy.types.Depsgraph) -> np.ndarray | None:
         if st.goal is None:
             return None
         m = np.array(st.goal.evaluated_get(depsgraph).matrix_world, dtype=np.float64)
+        _check_position(m[:3, 3], f"Goal '{st.goal.name}'")
         return m[:3, 3]
 
     # ------------------------------------------------------------------ stepping
@@ -193,12 +200,18 @@ def _alpha(st: Any) -> dict[str, float]:
     return {"hhi": float(st.alpha_hhi), "hsi": float(st.alpha_hsi)}
 
 
+def _check_position(p: np.ndarray, what: str) -> None:
+    if not np.isfinite(p).all() or np.abs(p).max() > MAX_COORD:
+        raise UserError(f"{what} has a NaN, infinite or far-off position (beyond {MAX_COORD:g} m); "
+                        "fix its transform or animation")
+
+
 def _check_finite_transform(ob: bpy.types.Object, what: str) -> None:
     try:
         m = np.array(ob.matrix_world, dtype=np.float64)
     except ReferenceError:
         raise UserError(f"{what} was deleted") from None
-    if not np.isfinite(m).all():
+    if not np.isfinite(m).all() or np.abs(m[:3, 3]).max() > MAX_COORD:
         raise UserError(f"{what} '{ob.name}' has a NaN or infinite transform; reset its location, rotation "
                         "and scale")
     if abs(np.linalg.det(m[:3, :3])) < 1e-12:

@@ -67,7 +67,7 @@ def world_triangles(collection: bpy.types.Collection, depsgraph: bpy.types.Depsg
         me.loop_triangles.foreach_get("vertices", tri)
         mw = np.array(oe.matrix_world, dtype=np.float64)
         v = co.reshape(nv, 3).astype(np.float64) @ mw[:3, :3].T + mw[:3, 3]
-        if not np.isfinite(v).all():
+        if not np.isfinite(v).all() or np.abs(v).max() > 1.0e5:   # Blender stores inf as float32 max
             raise UserError(f"Mesh '{ob.name}' has NaN or infinite coordinates (check its transform); "
                             "fix it or leave it out of the scene collection")
         verts.append(v)

@@ -1,0 +1,145 @@
+"""Bake: keys on every frame in a new action, deterministic for the seed, one undo step, failures change nothing."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+
+def _fcurves(action):
+    if hasattr(action, "layers"):
+        bags = [cb for layer in action.layers for strip in layer.strips for cb in strip.channelbags]
+        return [fc for bag in bags for fc in bag.fcurves]
+    return list(action.fcurves)
+
+
+def _curves(action) -> dict:
+    out = {}
+    for fc in _fcurves(action):
+        co = np.empty(len(fc.keyframe_points) * 2, dtype=np.float32)
+        fc.keyframe_points.foreach_get("co", co)
+        out[(fc.data_path, fc.array_index)] = co.reshape(-1, 2)
+    return out
+
+
+def _scene(fps=24, frames=(1, 30)):
+    import scenes
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    return scenes.demo_scene(bpy.context, fps=fps, frames=frames)
+
+
+def _window_override():
+    win = bpy.context.window_manager.windows[0]
+    area = next(a for a in win.screen.areas if a.type == 'VIEW_3D')
+    return bpy.context.temp_override(window=win, area=area)
+
+
+def test_bake_keys_every_frame_into_new_action(fresh):
+    d = _scene()
+    ego = d["ego"]
+    user = bpy.data.actions.new("UserAction")          # the user's own action must survive untouched
+    ego.animation_data_create().action = user
+    user_id = user.session_uid
+    assert bpy.ops.remogen.bake() == {'FINISHED'}
+    act = ego.animation_data.action
+    assert act.name.startswith("ReMoGen_") and act.session_uid != user_id
+    assert "UserAction" in bpy.data.actions and bpy.data.actions["UserAction"].use_fake_user
+    curves = _curves(act)
+    assert len(curves) == 22 * 4 + 3
+    for co in curves.values():
+        assert np.array_equal(co[:, 0], np.arange(1, 31, dtype=np.float32))
+    assert bpy.context.scene.frame_current == 1
+    # evaluating the action reproduces a pose that moved away from rest
+    bpy.context.scene.frame_set(30)
+    assert any(np.abs(np.array(pb.rotation_quaternion) - (1, 0, 0, 0)).max() > 1e-4 for pb in ego.pose.bones)
+
+
+def test_bake_same_seed_same_curves_other_seed_differs(fresh):
+    d = _scene()
+    bpy.ops.remogen.bake()
+    a = _curves(d["ego"].animation_data.action)
+    bpy.ops.remogen.bake()
+    b = _curves(d["ego"].animation_data.action)
+    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    bpy.context.scene.remogen.seed = 7
+    bpy.ops.remogen.bake()
+    c = _curves(d["ego"].animation_data.action)
+    assert any(not np.array_equal(a[k], c[k]) for k in a)
+
+
+def test_bake_other_fps_and_range(fresh):
+    d = _scene(fps=30, frames=(11, 40))
+    assert bpy.ops.remogen.bake(frame_start=15, frame_end=25) == {'FINISHED'}
+    curves = _curves(d["ego"].animation_data.action)
+    for co in curves.values():
+        assert np.array_equal(co[:, 0], np.arange(15, 26, dtype=np.float32))
+
+
+def test_undo_removes_bake(fresh):
+    d = _scene(frames=(1, 12))
+    ego_name = d["ego"].name
+    with _window_override():
+        bpy.ops.ed.undo_push(message="before bake")
+        assert bpy.ops.remogen.bake() == {'FINISHED'}
+        bpy.ops.ed.undo_push(message="bake")
+        assert any(a.name.startswith("ReMoGen_") for a in bpy.data.actions)
+        bpy.ops.ed.undo()
+    assert not any(a.name.startswith("ReMoGen_") for a in bpy.data.actions)
+    ego = bpy.data.objects[ego_name]
+    assert ego.animation_data is None or ego.animation_data.action is None
+
+
+def _snapshot():
+    scene = bpy.context.scene
+    ego = scene.remogen.ego
+    pose = [tuple(pb.rotation_quaternion) + tuple(pb.location) for pb in ego.pose.bones] if ego else None
+    return (sorted(a.name for a in bpy.data.actions), scene.frame_current, pose,
+            ego.animation_data.action.name if ego and ego.animation_data and ego.animation_data.action else None)
+
+
+@pytest.mark.parametrize("case", ["no_partner", "non_humanoid", "partner_nan", "goal_nan", "empty_collection",
+                                  "huge_collection", "missing_model", "foreign_model", "empty_range"])
+def test_bad_inputs_leave_file_unchanged(fresh, case, tmp_path, monkeypatch):
+    import scenes
+    from remogen_blender import scene as scene_mod
+    d = _scene(frames=(1, 12))
+    st = bpy.context.scene.remogen
+    kwargs = {}
+    if case == "no_partner":
+        st.partner = None
+        match = "Pick a partner armature"
+    elif case == "non_humanoid":
+        st.partner = scenes.make_tentacle()
+        match = "not humanoid enough"
+    elif case == "partner_nan":
+        d["partner"].animation_data_clear()
+        d["partner"].location = (float("nan"), 0.0, 0.0)
+        match = "NaN"
+    elif case == "goal_nan":
+        d["goal"].location = (0.0, float("inf"), 0.0)
+        match = "Goal 'Goal' has a NaN"
+    elif case == "empty_collection":
+        st.scene_collection = bpy.data.collections.new("Empty")
+        match = "has no mesh triangles"
+    elif case == "huge_collection":
+        monkeypatch.setattr(scene_mod, "MAX_TRIANGLES", 10)
+        match = "more than 10 triangles"
+    elif case == "missing_model":
+        monkeypatch.setenv("REMOGEN_MODEL_FILE", str(tmp_path / "nope.pt"))
+        match = "not found"
+    elif case == "foreign_model":
+        p = tmp_path / "foreign.pt"
+        import torch
+        torch.save({"weights": torch.zeros(3)}, p)
+        monkeypatch.setenv("REMOGEN_MODEL_FILE", str(p))
+        match = "not a ReMoGen model file"
+    else:
+        kwargs = {"frame_start": 10, "frame_end": 5}
+        match = "is empty"
+    before = _snapshot()
+    with pytest.raises(RuntimeError) as exc:
+        bpy.ops.remogen.bake(**kwargs)
+    msg = str(exc.value).strip()
+    assert match in msg and "\n" not in msg and "Traceback" not in msg
+    assert _snapshot() == before

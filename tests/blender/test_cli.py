@@ -1,0 +1,89 @@
+"""The headless command: cli_main() in process (what `blender -c remogen` calls) and the bpy-module batch entry."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _saved_scene(ctx, path: Path, with_settings: bool = False) -> None:
+    import scenes
+    d = scenes.demo_scene(ctx, frames=(1, 24))
+    if not with_settings:          # the command line names everything itself
+        st = ctx.scene.remogen
+        st.partner = st.scene_collection = st.goal = None
+        bpy.data.objects.remove(st.ego.children[0])
+        bpy.data.objects.remove(st.ego)
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    return d
+
+
+def _keys(path: Path) -> tuple[str, int]:
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    ego = bpy.context.scene.remogen.ego
+    act = ego.animation_data.action
+    n = sum(len(fc.keyframe_points) for layer in act.layers for strip in layer.strips
+            for bag in strip.channelbags for fc in bag.fcurves)
+    return act.name, n
+
+
+def test_cli_bakes_saved_blend(fresh, tmp_path, tiny_model_file):
+    from remogen_blender.cli import cli_main
+    src, out = tmp_path / "scene.blend", tmp_path / "out.blend"
+    _saved_scene(fresh, src)
+    before = src.read_bytes()
+    rc = cli_main(["bake", "--blend", str(src), "--partner", "Partner", "--scene-collection", "Props",
+                   "--goal", "Goal", "--text", "walk to the person and wave", "--alpha-hhi", "1",
+                   "--alpha-hsi", "0.5", "--frames", "1", "12", "--seed", "0", "--model", str(tiny_model_file),
+                   "--output", str(out)])
+    assert rc == 0
+    assert out.is_file() and src.read_bytes() == before            # the input file is never written
+    name, n = _keys(out)
+    assert name.startswith("ReMoGen_") and n == 12 * (22 * 4 + 3)
+    st = bpy.context.scene.remogen
+    assert st.alpha_hsi == pytest.approx(0.5) and st.partner.name == "Partner"
+
+
+@pytest.mark.parametrize("argv,match", [
+    (["bake", "--partner", "Nobody", "--output", "x.blend"], "no object 'Nobody'"),
+    (["bake", "--partner", "Goal", "--output", "x.blend"], "not an armature"),
+    (["bake", "--alpha-hhi", "3", "--output", "x.blend"], "between 0 and 1"),
+    (["bake", "--blend", "/nonexistent.blend", "--output", "x.blend"], "no .blend file"),
+    (["bake", "--model", "/nonexistent.pt", "--output", "x.blend"], "not found"),
+])
+def test_cli_errors_are_one_line(fresh, tmp_path, capsys, argv, match):
+    from remogen_blender.cli import cli_main
+    src = tmp_path / "scene.blend"
+    _saved_scene(fresh, src, with_settings=True)
+    argv = [a if a != "x.blend" else str(tmp_path / "x.blend") for a in argv]
+    assert cli_main(argv) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("remogen: error:") and match in err[0]
+    assert not (tmp_path / "x.blend").exists()
+
+
+def test_cli_usage(capsys):
+    from remogen_blender.cli import cli_main
+    assert cli_main(["--help"]) == 0
+    assert "bake" in capsys.readouterr().out
+    assert cli_main(["bake"]) == 2                       # --output is required
+
+
+def test_batch_module_in_subprocess(fresh, tmp_path, tiny_model_file):
+    src, out = tmp_path / "scene.blend", tmp_path / "out.blend"
+    _saved_scene(fresh, src, with_settings=True)
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    r = subprocess.run([sys.executable, "-m", "remogen_blender.batch", "bake", "--blend", str(src),
+                        "--frames", "1", "10", "--model", str(tiny_model_file), "--threads", "1",
+                        "--output", str(out)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "remogen: baked frames 1-10" in r.stdout
+    name, n = _keys(out)
+    assert n == 10 * (22 * 4 + 3)

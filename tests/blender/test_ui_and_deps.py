@@ -1,0 +1,134 @@
+"""Without PyTorch the add-on registers and says so; panels draw; the PyTorch installer works and fails clearly."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+bpy = pytest.importorskip("bpy")
+ROOT = Path(__file__).resolve().parents[2]
+
+
+class FakeLayout:
+    """Records what a draw() call asks for; every layout method returns another FakeLayout."""
+
+    def __init__(self, log: list) -> None:
+        self.log = log
+
+    def __getattr__(self, name):
+        def call(*args, **kwargs):
+            self.log.append((name, args, kwargs))
+            return FakeLayout(self.log)
+        return call
+
+    def __setattr__(self, name, value):
+        object.__setattr__(self, name, value)
+
+
+def _draw(panel_cls, context) -> list:
+    log: list = []
+    fake = type("P", (), {"layout": FakeLayout(log)})()
+    panel_cls.draw(fake, context)
+    return log
+
+
+def test_register_does_not_import_torch():
+    code = ("import sys, os; import bpy; sys.path.insert(0, sys.argv[1]); import remogen_blender as r; "
+            "r.register(); bad = 'torch' in sys.modules or 'model_runtime' in sys.modules; r.unregister(); "
+            "print('TORCH_IMPORTED' if bad else 'CLEAN', flush=True); os._exit(0)")
+    out = subprocess.run([sys.executable, "-c", code, str(ROOT)], capture_output=True, text=True, timeout=120)
+    assert "CLEAN" in out.stdout, out.stdout + out.stderr
+
+
+def test_without_torch_panel_and_operators_say_so(fresh, monkeypatch):
+    from remogen_blender import _runtime
+    from remogen_blender.panels import REMOGEN_PT_main
+    real = _runtime.importlib.util.find_spec
+    monkeypatch.setattr(_runtime.importlib.util, "find_spec", lambda n, *a: None if n == "torch" else real(n, *a))
+    _runtime.forget_torch_check()
+    try:
+        assert _runtime.torch_error().startswith("PyTorch is not installed:")
+        labels = [kw.get("text") for name, a, kw in _draw(REMOGEN_PT_main, fresh) if name == "label"]
+        assert "PyTorch is not installed" in labels
+        with pytest.raises(RuntimeError, match="PyTorch is not installed: press 'Install PyTorch'"):
+            bpy.ops.remogen.create_ego()
+        with pytest.raises(RuntimeError, match="PyTorch is not installed"):
+            bpy.ops.remogen.bake()
+    finally:
+        monkeypatch.undo()
+        _runtime.forget_torch_check()
+    assert _runtime.torch_error() is None
+
+
+def test_panels_draw(fresh):
+    import scenes
+    from remogen_blender import live
+    from remogen_blender.panels import REMOGEN_PT_bone_map, REMOGEN_PT_main, REMOGEN_UL_bone_map
+    scenes.demo_scene(fresh)
+    log = _draw(REMOGEN_PT_main, fresh)
+    ops = [a[0] for name, a, kw in log if name == "operator"]
+    assert "remogen.live_start" in ops and "remogen.bake" in ops
+    labels = [kw.get("text", "") for name, a, kw in log if name == "label"]
+    assert any(t.startswith("Bone map: mixamo (22/22)") for t in labels)
+    bpy.ops.remogen.live_start()
+    ops = [a[0] for name, a, kw in _draw(REMOGEN_PT_main, fresh) if name == "operator"]
+    assert "remogen.live_stop" in ops
+    live.stop()
+    assert REMOGEN_PT_bone_map.poll(fresh)
+    _draw(REMOGEN_PT_bone_map, fresh)
+    st = fresh.scene.remogen
+    REMOGEN_UL_bone_map.draw_item(None, fresh, FakeLayout([]), st, st.bone_map[0], 0, st, "bone_map_index")
+
+
+def test_bone_from_active(fresh):
+    import scenes
+    scenes.demo_scene(fresh)
+    st = fresh.scene.remogen
+    st.bone_map_index = 3
+    st.partner.data.bones.active = st.partner.data.bones["mixamorig:Head"]
+    assert bpy.ops.remogen.bone_from_active() == {'FINISHED'}
+    assert st.bone_map[3].bone == "mixamorig:Head"
+
+
+def _fake_wheel(folder: Path) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(folder / "remogen_fakedep-0.1-py3-none-any.whl", "w") as z:
+        z.writestr("remogen_fakedep/__init__.py", "VALUE = 42\n")
+        z.writestr("remogen_fakedep-0.1.dist-info/METADATA", "Metadata-Version: 2.1\nName: remogen-fakedep\n"
+                                                             "Version: 0.1\n")
+        z.writestr("remogen_fakedep-0.1.dist-info/WHEEL", "Wheel-Version: 1.0\nGenerator: test\n"
+                                                          "Root-Is-Purelib: true\nTag: py3-none-any\n")
+        z.writestr("remogen_fakedep-0.1.dist-info/RECORD", "")
+
+
+def test_installer_into_private_folder(tmp_path):
+    from remogen_blender import deps
+    _fake_wheel(tmp_path / "wheels")
+    lines: list[str] = []
+    ok, msg = deps.install(tmp_path / "site", "remogen-fakedep", index_url=None,
+                           find_links=str(tmp_path / "wheels"), no_index=True, on_line=lines.append)
+    assert ok, msg
+    assert (tmp_path / "site" / "remogen_fakedep" / "__init__.py").is_file()
+    assert any(ln.startswith("Installing") for ln in lines)
+
+
+def test_installer_failure_is_actionable(tmp_path):
+    from remogen_blender import deps
+    ok, msg = deps.install(tmp_path / "site", "remogen-no-such-package==1.0", index_url=None,
+                           find_links=str(tmp_path), no_index=True)
+    assert not ok
+    assert msg.startswith("PyTorch install failed (pip exit") and "offline zip" in msg and "\n" not in msg
+
+
+def test_installer_async_reports_status(tmp_path):
+    from remogen_blender import deps
+    _fake_wheel(tmp_path / "wheels")
+    th = deps.install_async(tmp_path / "site", "remogen-fakedep", index_url=None,
+                            find_links=str(tmp_path / "wheels"), no_index=True)
+    th.join(120)
+    assert deps.status.done and deps.status.ok and not deps.status.running
+    assert "installed" in deps.status.line
