@@ -62,11 +62,9 @@ def bake(scene: bpy.types.Scene, frame_start: int | None = None, frame_end: int 
                 progress(k + 1, n_model)
         frames = np.arange(f0, f1 + 1, dtype=np.float64)
         sk = runtime("skeleton")
-        locs = np.empty((len(frames), sk.NUM_JOINTS, 3))
-        rots = np.empty((len(frames), sk.NUM_JOINTS, 4))
-        for i, f in enumerate(frames):
-            pose = driver.pose_at((f - f0) / fps)
-            locs[i], rots[i] = driver.writer.pose_channels(pose.pelvis, pose.local_rotations)
+        poses = driver.poses_at((frames - f0) / fps)
+        locs, rots = driver.writer.pose_channels(poses.pelvis, poses.local_rotations)
+        rots = _continuous(rots)
         if not (np.isfinite(locs).all() and np.isfinite(rots).all()):
             raise UserError("The model produced NaN poses; check the model file and the inputs")
         ok = True
@@ -80,6 +78,18 @@ def bake(scene: bpy.types.Scene, frame_start: int | None = None, frame_end: int 
     _pose_restore(ego, saved_pose)   # the new action drives the pose from here on
     scene.frame_set(saved_frame[0], subframe=saved_frame[1])
     return BakeResult(act, len(frames), n_model, time.perf_counter() - t_start, replaced)
+
+
+def _continuous(q: np.ndarray) -> np.ndarray:
+    """Flip signs so each bone's quaternion never jumps to its antipode between keys (T, B, 4).
+
+    q and -q are the same rotation, but keys are interpolated per component: a sign jump between two
+    keys would swing the bone through a wrong pose at sub-frames (motion blur, retiming).
+    """
+    dots = np.sum(q[1:] * q[:-1], axis=-1)
+    flips = np.concatenate((np.ones((1,) + q.shape[1:-1]), np.cumprod(np.where(dots < 0.0, -1.0, 1.0), axis=0)))
+    out = q * flips[..., None]
+    return out * np.where(out[:1, :, :1] < 0.0, -1.0, 1.0)   # start in the w >= 0 hemisphere
 
 
 def _pose_snapshot(ob: bpy.types.Object) -> tuple[np.ndarray, np.ndarray]:

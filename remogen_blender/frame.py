@@ -161,6 +161,20 @@ class FrameDriver:
             return interpolate(self._frame(k0), None, 0.0)
         return interpolate(self._frame(k0), self._frame(k0 + 1), a)
 
+    def poses_at(self, model_times: np.ndarray) -> Pose:
+        """Poses at many model times at once (bake): pelvis (T, 3), local_rotations (T, 22, 4)."""
+        x = np.asarray(model_times, dtype=np.float64) / MODEL_DT
+        k0 = np.floor(x + _EPS).astype(np.int64)
+        a = np.clip(x - k0, 0.0, 1.0)
+        lo = np.clip(k0 - self.first_index, 0, len(self.frames) - 1)
+        hi = np.clip(k0 + 1 - self.first_index, 0, len(self.frames) - 1)
+        a = np.where(hi == lo, 0.0, a)
+        pel = np.stack([f.root[:3, 3] for f in self.frames]).astype(np.float64)
+        rot = np.stack([f.local_rotations for f in self.frames]).astype(np.float64)
+        p = (1.0 - a)[:, None] * pel[lo] + a[:, None] * pel[hi]
+        q = qslerp(rot[lo], rot[hi], a[:, None, None])
+        return Pose(p, q)
+
     def update(self, scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None,
                model_time: float | None = None, write: bool = True) -> Pose:
         """THE per-frame function: generate the model frames up to the time shown, then pose the ego.

@@ -312,6 +312,9 @@ class EgoWriter:
         self._rot = np.zeros((self._n, 4), dtype=np.float32)
         self._rot[:, 0] = 1.0
         self._loc = np.zeros((self._n, 3), dtype=np.float32)
+        self._inv_key: bytes | None = None
+        self._inv = np.eye(4)
+        self._q_obj_inv = np.array((1.0, 0.0, 0.0, 0.0))
 
     @property
     def object(self) -> bpy.types.Object:
@@ -319,18 +322,32 @@ class EgoWriter:
 
     def pose_channels(self, pelvis_world: np.ndarray, local_rotations: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray]:
-        """Blender channels for a world pose: ((22, 3) locations, (22, 4) quaternions) in SMPL-X order."""
-        mw = np.array(self._ob.matrix_world, dtype=np.float64)
-        inv = np.linalg.inv(mw)
-        q = np.asarray(local_rotations, dtype=np.float64).copy()
+        """Blender channels for world poses: ((..., 22, 3) locations, (..., 22, 4) quaternions), SMPL-X order.
+
+        pelvis_world (..., 3), local_rotations (..., 22, 4): one pose or a batch of them.
+        """
+        inv, q_obj_inv = self._object_inverse()
+        q = np.array(local_rotations, dtype=np.float64)
         # Global orientation in the armature's space: W^-1 G.
-        q[0] = qmul(qconj(matrix3_to_quat(rigid_rotation(mw))), q[0])
+        q[..., 0, :] = qmul(q_obj_inv, q[..., 0, :])
         rot = qmul(qmul(self._q_rest_inv, q), self._q_rest)
-        rot *= np.where(rot[:, :1] < 0.0, -1.0, 1.0)     # one hemisphere: smooth keyframe curves
-        p_arm = inv[:3, :3] @ np.asarray(pelvis_world, dtype=np.float64) + inv[:3, 3]
-        loc = np.zeros((len(q), 3))
-        loc[0] = self._r0_t @ (p_arm - self._h0)
+        p_arm = np.asarray(pelvis_world, dtype=np.float64) @ inv[:3, :3].T + inv[:3, 3]
+        loc = np.zeros(q.shape[:-1] + (3,))
+        loc[..., 0, :] = (p_arm - self._h0) @ self._r0_t.T
         return loc, rot
+
+    def _object_inverse(self) -> tuple[np.ndarray, np.ndarray]:
+        """(W^-1, conjugate quaternion of W's rotation), recomputed only when the object moved.
+
+        Cached because a LAPACK call per frame cost ~1 ms under load (thread start-up), more than the rest.
+        """
+        mw = np.array(self._ob.matrix_world, dtype=np.float64)
+        key = mw.tobytes()
+        if key != self._inv_key:
+            self._inv = np.linalg.inv(mw)
+            self._q_obj_inv = qconj(matrix3_to_quat(rigid_rotation(mw)))
+            self._inv_key = key
+        return self._inv, self._q_obj_inv
 
     def write_channels(self, loc: np.ndarray, rot: np.ndarray) -> None:
         try:
