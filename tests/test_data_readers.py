@@ -9,7 +9,7 @@ from model_runtime.data.captions import bandai_caption, cmu_caption, hdm05_capti
 from model_runtime.data.motion import load_motion, resample_positions
 from model_runtime.errors import InputError
 from model_runtime.skeleton import JOINT_NAMES
-from conftest import SHARED
+from paths import SHARED
 
 CHAIN_BVH = """HIERARCHY
 ROOT Hips

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from model_runtime import skeleton as sk
-from conftest import SHARED
+from paths import SHARED
 
 
 def test_fk_reproduces_reference_rest_joints():

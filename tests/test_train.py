@@ -10,7 +10,7 @@ from model_runtime import load_model
 from model_runtime.train import train_stage
 from model_runtime.training.samples import SegmentSampler
 from synthetic import synthetic_library
-from conftest import ROOT
+from paths import ROOT
 
 
 @pytest.fixture()
