@@ -107,6 +107,9 @@ def tick(context: bpy.types.Context) -> None:
     dt, _state.last_wall = now - _state.last_wall, now
     if scene.name != _state.scene_name:
         return
+    screen = context.screen
+    if screen is not None and screen.is_animation_playing:
+        return          # playback: the frame-change handler follows the timeline; wall time must not add to it
     t = scene_time(scene)
     _guarded(lambda: (_state.driver.update(scene, context.evaluated_depsgraph_get())
                       if t != _state.last_scene_time

@@ -121,3 +121,16 @@ def test_modal_cleanup_is_idempotent(fresh):
     cleanup_modal(fresh, timer)
     cleanup_modal(fresh, timer)
     cleanup_modal(fresh, None)
+
+
+def test_timer_tick_keeps_ego_living_while_timeline_stands_still(fresh):
+    import time
+    from remogen_blender import live
+    _run(fresh, [1])
+    st = live.state()
+    n0 = st.driver.latest_index
+    st.last_wall = time.perf_counter() - 0.35          # as if 0.35 s of wall time passed since the last tick
+    live.tick(bpy.context)
+    assert live.is_running(), live.message()
+    assert st.driver.latest_index - n0 in (3, 4)        # one model frame per 0.1 s
+    assert live.status_line().startswith("ReMoGen live:") and "ms/frame" in live.status_line()
