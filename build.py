@@ -40,7 +40,8 @@ PIP_PLATFORMS = {
     "macos-x64": ["macosx_10_15_x86_64", "macosx_10_9_x86_64"],
 }
 BLENDER_PYTHON = "3.11"    # Blender 4.2 - 5.0
-SKIP_WHEELS = ("numpy-",)  # Blender ships its own numpy; a second copy would shadow it
+SKIP_WHEELS = ("numpy-", "setuptools-")  # Blender ships numpy; setuptools (only for torch C++ builds) would
+# drop a distutils-precedence .pth into the site-packages that every extension shares
 RUNTIME_WEIGHTS = ("default.pt", "MODEL_CARD.md")
 
 
@@ -188,8 +189,9 @@ def collect_wheels(platform: str, wheel_dir: Path | None, requirement: str, inde
         dest.mkdir(parents=True, exist_ok=True)
         cmd = [sys.executable, "-m", "pip", "download", requirement, "--dest", str(dest), "--only-binary=:all:",
                "--python-version", BLENDER_PYTHON, "--implementation", "cp",
-               "--abi", "cp" + BLENDER_PYTHON.replace(".", ""), "--abi", "abi3", "--abi", "none",
-               "--index-url", index_url, "--extra-index-url", "https://pypi.org/simple"]
+               "--abi", "cp" + BLENDER_PYTHON.replace(".", ""), "--abi", "abi3", "--abi", "none"]
+        if index_url:   # empty: pip's own configuration (a local mirror, a proxy)
+            cmd += ["--index-url", index_url, "--extra-index-url", "https://pypi.org/simple"]
         for tag in PIP_PLATFORMS[platform]:
             cmd += ["--platform", tag]
         print("build.py: " + " ".join(cmd), flush=True)
@@ -229,8 +231,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--wheels", action="append", default=[], metavar="PLATFORM",
                     help=f"bundle the CPU PyTorch wheels for a platform ({', '.join(PIP_PLATFORMS)}); repeatable")
     ap.add_argument("--wheel-dir", help="take the wheels from this folder instead of downloading them")
-    ap.add_argument("--torch-requirement", default="torch>=2.2", help="what pip downloads for --wheels")
-    ap.add_argument("--torch-index", default="https://download.pytorch.org/whl/cpu")
+    ap.add_argument("--torch-requirement", default="torch==2.13.0", help="what pip downloads for --wheels (the "
+                                                                           "version model_runtime is tested with)")
+    ap.add_argument("--torch-index", default="https://download.pytorch.org/whl/cpu",
+                    help="index with the CPU builds of torch (its dependencies come from PyPI); '' uses pip's "
+                         "configured index")
     ap.add_argument("--blender-ext", help="path of Blender's blender_ext.py")
     ap.add_argument("--install", metavar="DIR", help="install the slim zip (or the first --wheels zip) into "
                                                      "this Blender user folder (e.g. ~/.config/blender/4.5)")

@@ -113,3 +113,11 @@ def demo_scene(context, fps: int = 24, frames=(1, 48)) -> dict:
     st.text = "walk to the person and wave"
     scene.frame_set(frames[0])
     return {"scene": scene, "partner": partner, "ego": st.ego, "props": props, "goal": goal}
+
+
+def action_fcurves(action) -> list:
+    """F-curves of an action on 4.2/4.3 (action.fcurves) and 4.4+ (layers > strips > channel bags)."""
+    if hasattr(action, "layers"):
+        return [fc for layer in action.layers for strip in layer.strips for bag in strip.channelbags
+                for fc in bag.fcurves]
+    return list(action.fcurves)

@@ -8,10 +8,8 @@ bpy = pytest.importorskip("bpy")
 
 
 def _fcurves(action):
-    if hasattr(action, "layers"):
-        bags = [cb for layer in action.layers for strip in layer.strips for cb in strip.channelbags]
-        return [fc for bag in bags for fc in bag.fcurves]
-    return list(action.fcurves)
+    import scenes
+    return scenes.action_fcurves(action)
 
 
 def _curves(action) -> dict:

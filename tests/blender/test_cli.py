@@ -29,8 +29,8 @@ def _keys(path: Path) -> tuple[str, int]:
     bpy.ops.wm.open_mainfile(filepath=str(path))
     ego = bpy.context.scene.remogen.ego
     act = ego.animation_data.action
-    n = sum(len(fc.keyframe_points) for layer in act.layers for strip in layer.strips
-            for bag in strip.channelbags for fc in bag.fcurves)
+    import scenes
+    n = sum(len(fc.keyframe_points) for fc in scenes.action_fcurves(act))
     return act.name, n
 
 
