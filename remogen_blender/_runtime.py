@@ -95,11 +95,11 @@ _model_cache: dict[str, Any] = {"key": None, "model": None}
 
 
 def settings_from_prefs() -> tuple[str, int]:
-    """(model file or "" for the shipped weights, CPU threads or 0 for automatic)."""
+    """(model file or "" for the shipped weights, CPU threads or 0 for PyTorch's own choice)."""
     from .preferences import get_prefs
     prefs = get_prefs()
     path = (prefs.model_file if prefs is not None else "") or os.environ.get(MODEL_ENV, "")
-    threads = int(prefs.cpu_threads) if prefs is not None else 0
+    threads = int(prefs.cpu_threads) if prefs is not None else 1   # see the preference's description
     return path, threads
 
 

@@ -35,7 +35,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--no-fwsr", dest="fwsr", action="store_false", help="frame-wise refinement off")
     b.add_argument("--frames", type=int, nargs=2, metavar=("START", "END"), help="frame range (default: scene's)")
     b.add_argument("--model", help="model file (default: the preferences', else the shipped weights)")
-    b.add_argument("--threads", type=int, default=0, help="CPU threads for PyTorch (0: automatic)")
+    b.add_argument("--threads", type=int, default=1,
+                   help="CPU threads for PyTorch (default 1, fastest for the default model; 0: PyTorch's choice)")
     b.add_argument("--output", required=True, help=".blend to save the result to")
     return p
 

@@ -1,0 +1,197 @@
+"""Demo scene: a shipped CMU walk as the partner, a table, a goal; bake the ego; save demo.blend and a PNG strip.
+
+    python -m remogen_blender.demo --out demo_out            # with the bpy module (.venv-bpy45)
+    python -m remogen_blender.demo --out demo_out --model my.pt
+
+The partner clip (demo_data/cmu_05_01_walk.npz) is CMU trial 05_01 retargeted to the SMPL-X body at 10 fps;
+`python -m remogen_blender.demo make-clip BVH` rebuilds it. CMU data: "The data used in this project was
+obtained from mocap.cs.cmu.edu. The database was created with funding from NSF EIA-0196217."
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+CLIP = Path(__file__).resolve().parent / "demo_data" / "cmu_05_01_walk.npz"
+CREDIT = ("CMU Graphics Lab Motion Capture Database, trial 05_01 (walk). The data used in this project was "
+          "obtained from mocap.cs.cmu.edu. The database was created with funding from NSF EIA-0196217.")
+
+
+def make_clip(bvh: str, out: Path = CLIP) -> Path:
+    """Retarget a CMU BVH to the SMPL-X body at 10 fps and store just the pose channels (a few kB)."""
+    from ._runtime import runtime
+    motion = runtime("data.motion").load_motion(bvh, fps=120.0, caption="walk")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(out, local_rotations=motion.local_rotations.astype(np.float32),
+                        pelvis=motion.root[:, :3, 3].astype(np.float32), fps=np.float32(motion.fps),
+                        caption=np.str_(motion.caption or "walk"), credit=np.str_(CREDIT))
+    return out
+
+
+def _look_at(ob, target) -> None:
+    from mathutils import Vector
+    d = Vector(target) - ob.location
+    ob.rotation_euler = d.to_track_quat('-Z', 'Y').to_euler()
+
+
+def build_scene(context, fps: int = 24):
+    """The demo scene in the current (empty) file; returns (scene, number of frames)."""
+    import bpy
+    from . import action, rig
+    clip = np.load(CLIP)
+    rots, pelvis, clip_fps = clip["local_rotations"], clip["pelvis"], float(clip["fps"])
+    pelvis = pelvis - np.array([pelvis[0, 0], 0.0, 0.0], dtype=np.float32)    # walk along x = 0
+    scene = context.scene
+    scene.render.fps = fps
+    n_frames = int(math.floor((len(rots) - 1) / clip_fps * fps)) + 1
+    scene.frame_start, scene.frame_end = 1, n_frames
+
+    partner = rig.create_ego(context, name="Partner")
+    del partner[rig.EGO_MARK]
+    writer = rig.EgoWriter(partner)
+    loc, rot = writer.pose_channels(pelvis, rots)
+    frames = 1.0 + np.arange(len(rots)) / clip_fps * fps
+    from .bake import _continuous
+    action.write_pose_keys(partner, "CMU_05_01_walk", frames, list(rig.runtime("skeleton").JOINT_NAMES),
+                           loc, _continuous(rot), root="pelvis")
+
+    end_y = float(pelvis[-1, 1])                 # the walk heads for -Y; the ego waits beyond its end
+    ego = rig.create_ego(context, name="Ego", location=(0.0, end_y - 1.1, 0.0), yaw=math.pi)
+    props = bpy.data.collections.new("Props")
+    scene.collection.children.link(props)
+    me = bpy.data.meshes.new("Table")
+    sx, sy, h = 0.6, 0.35, 0.75
+    me.from_pydata([(x, y, z) for x in (-sx, sx) for y in (-sy, sy) for z in (0.0, h)], [],
+                   [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)])
+    table = bpy.data.objects.new("Table", me)
+    props.objects.link(table)
+    table.location = (1.1, end_y - 0.6, 0.0)
+    goal = bpy.data.objects.new("Goal", None)
+    scene.collection.objects.link(goal)
+    goal.location = (-0.9, end_y + 0.3, 0.0)
+    goal.empty_display_type = 'SPHERE'
+    goal.empty_display_size = 0.15
+
+    st = scene.remogen
+    st.partner, st.ego, st.scene_collection, st.goal = partner, ego, props, goal
+    st.text = "walk to the person and wave"
+    # looks for the strip render
+    for ob, colour in ((partner.children[0], (0.25, 0.45, 0.9, 1.0)), (ego.children[0], (0.95, 0.55, 0.2, 1.0)),
+                       (table, (0.6, 0.6, 0.6, 1.0))):
+        ob.color = colour
+    floor_me = bpy.data.meshes.new("Floor")       # looks only: not in Props, so not an obstacle
+    floor_me.from_pydata([(-3.0, -6.0, 0.0), (3.0, -6.0, 0.0), (3.0, 3.0, 0.0), (-3.0, 3.0, 0.0)], [], [(0, 1, 2, 3)])
+    floor = bpy.data.objects.new("Floor", floor_me)
+    scene.collection.objects.link(floor)
+    floor.color = (0.85, 0.85, 0.8, 1.0)
+    if scene.world is None:
+        scene.world = bpy.data.worlds.new("World")
+    scene.world.color = (0.75, 0.78, 0.82)
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    mid_y = 0.5 * (float(pelvis[0, 1]) + end_y - 1.1)
+    cam.location = (9.5, mid_y, 2.4)
+    _look_at(cam, (0.0, mid_y, 0.8))
+    scene.camera = cam
+    scene.frame_set(1)
+    return scene, n_frames
+
+
+def render_strip(scene, frames: list[int], path: Path, size: int = 240) -> Path:
+    """Workbench renders of a few frames side by side in one PNG (works without a GPU)."""
+    import bpy
+    r = scene.render
+    r.engine = 'BLENDER_WORKBENCH'
+    r.resolution_x = r.resolution_y = size
+    r.resolution_percentage = 100
+    scene.display.shading.color_type = 'OBJECT'
+    r.image_settings.file_format = 'PNG'
+    r.film_transparent = False
+    tiles = []
+    for f in frames:
+        scene.frame_set(f)
+        tmp = path.with_name(f".strip_{f}.png")
+        r.filepath = str(tmp)
+        bpy.ops.render.render(write_still=True)
+        img = bpy.data.images.load(str(tmp))
+        px = np.empty(img.size[0] * img.size[1] * 4, dtype=np.float32)
+        img.pixels.foreach_get(px)
+        tiles.append(px.reshape(img.size[1], img.size[0], 4))
+        bpy.data.images.remove(img)
+        tmp.unlink()
+    strip = np.concatenate(tiles, axis=1)
+    out = bpy.data.images.new("strip", width=strip.shape[1], height=strip.shape[0], alpha=True)
+    out.pixels.foreach_set(strip.ravel())
+    out.filepath_raw = str(path)
+    out.file_format = 'PNG'
+    out.save()
+    bpy.data.images.remove(out)
+    return path
+
+
+def run(out_dir: Path, model_path: str | None, strip_frames: int = 6, size: int = 240) -> int:
+    import bpy
+    from . import register, unregister
+    from ._runtime import get_model, remogen_errors, runtime
+    from .bake import bake
+
+    register()
+    try:
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        try:
+            model = get_model(path=model_path or "", threads=1)
+            note = model_path or "shipped weights"
+        except runtime("errors").ModelFileError as exc:
+            if model_path:
+                raise
+            print(f"remogen demo: {exc}\nremogen demo: using an UNTRAINED default-size model instead; "
+                  "the motion will not be meaningful", file=sys.stderr)
+            model, note = runtime().load_model(config="default"), "untrained default-size model"
+            import torch
+            torch.set_num_threads(1)
+        scene, n = build_scene(bpy.context)
+        t0 = time.perf_counter()
+        res = bake(scene, 1, n, model=model)
+        blend = out_dir / "demo.blend"
+        bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+        shots = [int(round(v)) for v in np.linspace(1, n, strip_frames)]
+        strip = render_strip(scene, shots, out_dir / "demo_strip.png", size=size)
+        print(f"remogen demo: baked {res.frames} frames ({res.model_frames} model frames, {res.model_fps:.0f}/s) "
+              f"with the {note} in {time.perf_counter() - t0:.1f} s; saved {blend} and {strip} (frames {shots})")
+        return 0
+    except remogen_errors() as exc:
+        print(f"remogen demo: error: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        unregister()
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("command", nargs="?", default="run", choices=["run", "make-clip"])
+    ap.add_argument("bvh", nargs="?", help="make-clip: the CMU BVH to convert")
+    ap.add_argument("--out", default="demo_out", help="folder for demo.blend and demo_strip.png")
+    ap.add_argument("--model", help="model file (default: the shipped weights)")
+    ap.add_argument("--shots", type=int, default=6, help="frames in the PNG strip")
+    ap.add_argument("--size", type=int, default=240, help="pixel size of each frame in the strip")
+    args = ap.parse_args(argv)
+    if args.command == "make-clip":
+        if not args.bvh:
+            ap.error("make-clip needs the BVH path")
+        print(make_clip(args.bvh))
+        return 0
+    return run(Path(args.out).resolve(), args.model, args.shots, args.size)
+
+
+if __name__ == "__main__":
+    rc = main(sys.argv[1:])
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(rc)   # BLENDER_NOTES §4
