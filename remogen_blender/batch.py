@@ -14,6 +14,7 @@ from typing import Sequence
 
 def main(argv: Sequence[str]) -> int:
     import bpy  # noqa: F401  - must come before the add-on's modules
+    del bpy
     from . import register, unregister
     from .cli import cli_main
     register()

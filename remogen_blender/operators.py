@@ -1,6 +1,4 @@
 """Operators: create the ego, live start/stop, bake, and bone-map editing. Each reports one line on failure."""
-from __future__ import annotations
-
 import bpy
 from bpy.props import IntProperty
 
@@ -40,6 +38,7 @@ class REMOGEN_OT_live_start(bpy.types.Operator):
     bl_label = "Start Live"
 
     _timer = None
+    _state = None
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
@@ -66,12 +65,17 @@ class REMOGEN_OT_live_start(bpy.types.Operator):
         wm = context.window_manager
         self._timer = wm.event_timer_add(TIMER_INTERVAL, window=context.window)
         wm.modal_handler_add(self)
-        live.state().modal = True
+        self._state = live.state()
+        self._state.modal = True
         return {'RUNNING_MODAL'}
 
     def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
         if not live.is_running():          # Stop button, an error in a handler, or a file load
             return self._finish(context, report=True)
+        if live.state() is not self._state:   # Start pressed again: the newer modal owns the session
+            cleanup_modal(context, self._timer, clear_status=False)
+            self._timer = None
+            return {'CANCELLED'}
         if event.type == 'ESC' and event.value == 'PRESS':
             live.stop("Stopped (Esc)")
             return self._finish(context)
@@ -97,14 +101,14 @@ class REMOGEN_OT_live_start(bpy.types.Operator):
         self._timer = None
 
 
-def cleanup_modal(context: bpy.types.Context, timer) -> None:
+def cleanup_modal(context: bpy.types.Context, timer, clear_status: bool = True) -> None:
     """Remove the modal's timer and status text (safe to call twice, or with no timer)."""
     if timer is not None:
         try:
             context.window_manager.event_timer_remove(timer)
         except (ReferenceError, ValueError, RuntimeError):
             pass
-    if context.workspace is not None:
+    if clear_status and context.workspace is not None:
         context.workspace.status_text_set(None)
 
 
@@ -128,8 +132,8 @@ class REMOGEN_OT_bake(bpy.types.Operator):
     bl_label = "Bake"
     bl_options = {'REGISTER', 'UNDO'}
 
-    frame_start: IntProperty(name="Start", default=-1, description="-1: the scene's start")  # type: ignore
-    frame_end: IntProperty(name="End", default=-1, description="-1: the scene's end")  # type: ignore
+    frame_start: IntProperty(name="Start", default=-1, description="-1: the scene's start")
+    frame_end: IntProperty(name="End", default=-1, description="-1: the scene's end")
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         from .bake import bake

@@ -1,6 +1,4 @@
 """Add-on preferences: model file, SMPL-X model folder, CPU threads, and installing PyTorch."""
-from __future__ import annotations
-
 import bpy
 from bpy.props import IntProperty, StringProperty
 
@@ -19,22 +17,22 @@ def _model_changed(_self, _context) -> None:
 class RemogenPreferences(bpy.types.AddonPreferences):
     bl_idname = __package__
 
-    model_file: StringProperty(  # type: ignore[valid-type]
+    model_file: StringProperty(
         name="Model file", subtype='FILE_PATH', default="", update=_model_changed,
         description="A ReMoGen .pt model; empty uses the weights shipped with the add-on")
-    smplx_folder: StringProperty(  # type: ignore[valid-type]
+    smplx_folder: StringProperty(
         name="SMPL-X model folder", subtype='DIR_PATH', default="",
         description="Your own SMPL-X model folder (with SMPLX_NEUTRAL.npz) for the real body mesh; needs the "
                     "'smplx' Python package. Empty uses a simple proxy body")
-    cpu_threads: IntProperty(  # type: ignore[valid-type]
+    cpu_threads: IntProperty(
         name="CPU threads", default=1, min=0, max=256, update=_model_changed,
         description="Threads PyTorch may use. 1 is fastest for the default model: PyTorch's threads spin "
                     "against Blender's own (measured 200x slower with 2 on a busy 2-core machine). "
                     "0 keeps PyTorch's own choice")
-    torch_requirement: StringProperty(  # type: ignore[valid-type]
+    torch_requirement: StringProperty(
         name="PyTorch requirement", default=deps.DEFAULT_REQUIREMENT,
         description="What 'Install PyTorch' asks pip for")
-    torch_index: StringProperty(  # type: ignore[valid-type]
+    torch_index: StringProperty(
         name="Package index", default=deps.DEFAULT_INDEX,
         description="Where pip downloads PyTorch from (the CPU build by default)")
 

@@ -1,6 +1,4 @@
 """`scene.remogen`: the settings an animator edits (names are the public contract) and the bone map."""
-from __future__ import annotations
-
 import bpy
 from bpy.props import (BoolProperty, CollectionProperty, FloatProperty, IntProperty, PointerProperty,
                        StringProperty)
@@ -19,45 +17,45 @@ def _partner_changed(self: "RemogenSettings", _context: bpy.types.Context) -> No
 
 class RemogenBoneMapItem(bpy.types.PropertyGroup):
     """One SMPL-X joint and the partner bone (or "lerp:A:B:t", "end:A") that gives its position."""
-    joint: StringProperty(name="Joint", description="SMPL-X body joint")  # type: ignore[valid-type]
+    joint: StringProperty(name="Joint", description="SMPL-X body joint")
     bone: StringProperty(name="Bone", description="Partner bone name, 'lerp:A:B:t' (a point between two "
-                         "bones' heads) or 'end:A' (the tail of bone A)")  # type: ignore[valid-type]
+                         "bones' heads) or 'end:A' (the tail of bone A)")
 
 
 class RemogenSettings(bpy.types.PropertyGroup):
-    partner: PointerProperty(  # type: ignore[valid-type]
+    partner: PointerProperty(
         name="Partner", type=bpy.types.Object, poll=_is_armature, update=_partner_changed,
         description="The armature the ego reacts to")
-    scene_collection: PointerProperty(  # type: ignore[valid-type]
+    scene_collection: PointerProperty(
         name="Scene", type=bpy.types.Collection,
         description="Meshes the ego must walk around (voxelised once, rebuilt when they change)")
-    goal: PointerProperty(  # type: ignore[valid-type]
+    goal: PointerProperty(
         name="Goal", type=bpy.types.Object, description="Optional object the ego heads for")
-    ego: PointerProperty(  # type: ignore[valid-type]
+    ego: PointerProperty(
         name="Ego", type=bpy.types.Object, poll=_is_armature,
         description="The generated SMPL-X character (press Create Ego)")
-    text: StringProperty(  # type: ignore[valid-type]
+    text: StringProperty(
         name="Intent", default="walk to the person and wave", description="What the ego should do")
-    alpha_hhi: FloatProperty(  # type: ignore[valid-type]
+    alpha_hhi: FloatProperty(
         name="Partner (HHI)", default=1.0, min=0.0, max=1.0, subtype='FACTOR',
         description="How strongly the ego reacts to the partner")
-    alpha_hsi: FloatProperty(  # type: ignore[valid-type]
+    alpha_hsi: FloatProperty(
         name="Scene (HSI)", default=1.0, min=0.0, max=1.0, subtype='FACTOR',
         description="How strongly the ego reacts to the scene meshes and the goal")
-    guidance: FloatProperty(  # type: ignore[valid-type]
+    guidance: FloatProperty(
         name="Guidance", default=5.0, min=0.0, soft_max=10.0, description="Classifier-free guidance on the text")
-    seed: IntProperty(  # type: ignore[valid-type]
+    seed: IntProperty(
         name="Seed", default=0, min=0, description="Same seed and inputs give the same motion")
-    use_fwsr: BoolProperty(  # type: ignore[valid-type]
+    use_fwsr: BoolProperty(
         name="FWSR", default=True, description="Frame-wise segment refinement: react within a frame")
 
     # Bone map storage (shown and editable in the panel).
-    bone_map: CollectionProperty(type=RemogenBoneMapItem)  # type: ignore[valid-type]
-    bone_map_index: IntProperty(name="Bone map row", default=0)  # type: ignore[valid-type]
-    bone_map_family: StringProperty(name="Rig family", default="")  # type: ignore[valid-type]
-    bone_map_rig: StringProperty(  # type: ignore[valid-type]
+    bone_map: CollectionProperty(type=RemogenBoneMapItem)
+    bone_map_index: IntProperty(name="Bone map row", default=0)
+    bone_map_family: StringProperty(name="Rig family", default="")
+    bone_map_rig: StringProperty(
         name="Mapped rig", default="", description="The partner object the bone map was made for")
-    show_bone_map: BoolProperty(name="Show bone map", default=False)  # type: ignore[valid-type]
+    show_bone_map: BoolProperty(name="Show bone map", default=False)
 
 
 CLASSES = (RemogenBoneMapItem, RemogenSettings)

@@ -134,3 +134,14 @@ def test_timer_tick_keeps_ego_living_while_timeline_stands_still(fresh):
     assert live.is_running(), live.message()
     assert st.driver.latest_index - n0 in (3, 4)        # one model frame per 0.1 s
     assert live.status_line().startswith("ReMoGen live:") and "ms/frame" in live.status_line()
+
+
+def test_ego_deleted_mid_run_stops_cleanly(fresh):
+    from remogen_blender import live
+    d, _ = _run(fresh, range(1, 5))
+    body = d["ego"].children[0]
+    bpy.data.objects.remove(d["ego"])
+    bpy.data.objects.remove(body)
+    bpy.context.scene.frame_set(7)
+    assert not live.is_running()
+    assert live.message().startswith("Live stopped:") and "\n" not in live.message()

@@ -1,7 +1,6 @@
 """Ego creation and posing, partner reading through bone maps."""
 from __future__ import annotations
 
-import math
 import sys
 import types
 

@@ -1,7 +1,6 @@
 """Without PyTorch the add-on registers and says so; panels draw; the PyTorch installer works and fails clearly."""
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 import zipfile
