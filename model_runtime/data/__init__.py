@@ -1,4 +1,4 @@
-"""Motion data: readers (BVH, AMASS .npz), retargeting to SMPL-X, captions, the clip library."""
+"""Motion data: readers (BVH, Acclaim ASF/AMC, AMASS .npz), retargeting to SMPL-X, captions, the clip library."""
 from .motion import Motion, load_motion
 
 __all__ = ["Motion", "load_motion"]

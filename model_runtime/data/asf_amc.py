@@ -54,6 +54,11 @@ class AsfSkeleton:
     root_position: np.ndarray
     root_orientation: np.ndarray
 
+    @property
+    def metres_per_unit(self) -> float:
+        """Acclaim lengths are inches times ':units length' (CMU: 0.45, so 1 unit = 5.644 cm)."""
+        return 0.0254 / self.length_scale
+
 
 def read_asf(path: str | Path) -> AsfSkeleton:
     path = Path(path)
@@ -155,6 +160,8 @@ def read_amc(path: str | Path, skel: AsfSkeleton) -> dict[str, np.ndarray]:
             if name in fr:
                 vals = fr[name][:width]
                 arr[i, :len(vals)] = vals
+        if not np.isfinite(arr).all():
+            raise InputError(f"{path.name}: values for '{name}' contain NaN or inf; fix or trim the file")
         out[name] = arr
     return out
 

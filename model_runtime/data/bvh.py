@@ -1,18 +1,20 @@
-"""BVH reader: any hierarchy, 3 or 6 channels per joint, any rotation channel order per joint.
+"""BVH reader: any hierarchy, 3 or 6 (or any) channels per joint, any rotation order per joint.
 
 Returns the source skeleton's world joint positions per frame in the file's own units and axes
 (retargeting converts units, up axis and skeleton). Rotation channels compose in the order listed:
-"Zrotation Xrotation Yrotation" means R = Rz @ Rx @ Ry. A joint with position channels uses them
-as its local translation (Bandai files give every joint 6 channels), otherwise its OFFSET.
+"Zrotation Xrotation Yrotation" means R = Rz @ Rx @ Ry. A joint with position channels uses them as
+its local translation (Bandai files give every joint 6 channels), otherwise its OFFSET.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+
+_CHANNELS = {f"{a}{k}" for a in "xyz" for k in ("position", "rotation")}
 
 
 @dataclass
@@ -29,36 +31,40 @@ class BvhMotion:
     joints: list[BvhJoint]
     frame_time: float
     data: np.ndarray                     # (T, total channels) float64 as read
-    names: dict[str, int] = field(default_factory=dict)
 
     @property
     def fps(self) -> float:
         return 1.0 / self.frame_time
 
+    def _columns(self) -> list[tuple[int, int, str]]:
+        """(joint, data column, channel name lower-cased) for every channel."""
+        out, col = [], 0
+        for j, jt in enumerate(self.joints):
+            for ch in jt.channels:
+                out.append((j, col, ch.lower()))
+                col += 1
+        return out
+
     def world_positions(self) -> tuple[np.ndarray, np.ndarray]:
         """(T, J, 3) joint positions and (T, J, 3) End Site positions (NaN where a joint has none)."""
-        t = self.data.shape[0]
-        n = len(self.joints)
+        t, n = self.data.shape[0], len(self.joints)
         glob_r = np.zeros((t, n, 3, 3))
         glob_p = np.zeros((t, n, 3))
         ends = np.full((t, n, 3), np.nan)
-        col = 0
+        cols = self._columns()
         for j, jt in enumerate(self.joints):
-            k = len(jt.channels)
-            vals = self.data[:, col:col + k]
-            col += k
             local_p = np.broadcast_to(jt.offset, (t, 3)).copy()
             rot = np.broadcast_to(np.eye(3), (t, 3, 3)).copy()
             pos_seen = False
-            for c, ch in enumerate(jt.channels):
-                axis = "xyz".index(ch[0].lower())
-                if ch[1:].lower() == "position":
-                    if not pos_seen:
-                        local_p = np.zeros((t, 3))
+            for _, c, ch in (x for x in cols if x[0] == j):
+                axis = "xyz".index(ch[0])
+                if ch.endswith("position"):
+                    if not pos_seen:            # position channels replace the OFFSET as a whole
+                        local_p[:] = 0.0
                         pos_seen = True
-                    local_p[:, axis] = vals[:, c]
+                    local_p[:, axis] = self.data[:, c]
                 else:
-                    rot = rot @ _axis_rotation(axis, np.radians(vals[:, c]))
+                    rot = rot @ axis_rotation(axis, np.radians(self.data[:, c]))
             if jt.parent < 0:
                 glob_r[:, j], glob_p[:, j] = rot, local_p
             else:
@@ -66,106 +72,167 @@ class BvhMotion:
                 glob_r[:, j] = pr @ rot
                 glob_p[:, j] = glob_p[:, jt.parent] + (pr @ local_p[..., None])[..., 0]
             if jt.end_site is not None:
-                ends[:, j] = glob_p[:, j] + (glob_r[:, j] @ jt.end_site)
+                ends[:, j] = glob_p[:, j] + glob_r[:, j] @ jt.end_site
         return glob_p, ends
 
+    def rest_lead_in(self, rest_deg: float = 5.0, jump_deg: float = 10.0, max_s: float = 0.1) -> int:
+        """How many leading frames to drop: 0, or 1 + the lead-in when frame 0 is an added rest pose.
 
-def _axis_rotation(axis: int, ang: np.ndarray) -> np.ndarray:
+        Frame 0 counts as added when every rotation channel that moves in the clip is within
+        `rest_deg` of 0 (channels that never move, like uncaptured fingers, say nothing) and the pose
+        jumps by more than `jump_deg` into frame 1. The DAZ-friendly CMU files then blend from the
+        rest pose into the capture over a few frames; those frames, changing far faster than anything
+        later, go too (at most `max_s` seconds)."""
+        rot = [c for _, c, ch in self._columns() if ch.endswith("rotation")]
+        if self.data.shape[0] < 4 or not rot:
+            return 0
+        r = self.data[:, rot]
+        moving = np.ptp(r, axis=0) > 1e-3
+        if not moving.any() or np.abs(r[0, moving]).max() > rest_deg:
+            return 0
+        step = np.abs((np.diff(r[:, moving], axis=0) + 180.0) % 360.0 - 180.0).max(axis=1)  # (T-1,)
+        if step[0] <= jump_deg:
+            return 0
+        typical = float(np.median(step[1:]))
+        drop, limit = 1, 1 + int(round(max_s * self.fps))
+        while drop < min(limit, len(step)) and step[drop] > max(3.0 * typical, jump_deg / 2):
+            drop += 1
+        return drop
+
+    def drop_frames(self, n: int) -> "BvhMotion":
+        return replace(self, data=self.data[n:])
+
+    def looks_like_amc2bvh(self) -> bool:
+        """CMU ASF joint names with a 30 fps header: the amc2bvh default that hides 120 fps captures."""
+        names = {j.name.lower() for j in self.joints}
+        return abs(self.fps - 30.0) < 0.5 and {"lfemur", "ltibia", "lhumerus", "thorax"} <= names
+
+
+def axis_rotation(axis: int, ang: np.ndarray) -> np.ndarray:
+    """Rotations (..., 3, 3) by angles (radians) about the x (0), y (1) or z (2) axis."""
     c, s = np.cos(ang), np.sin(ang)
-    m = np.zeros(ang.shape + (3, 3))
+    m = np.zeros(np.shape(ang) + (3, 3))
     a, b = [(1, 2), (2, 0), (0, 1)][axis]
     m[..., axis, axis] = 1.0
     m[..., a, a], m[..., a, b], m[..., b, a], m[..., b, b] = c, -s, s, c
     return m
 
 
+def _numbers(tok: list[str], n: int, name: str, line: int, what: str) -> np.ndarray:
+    try:
+        vals = [float(v) for v in tok[:n]]
+    except ValueError:
+        vals = []
+    if len(vals) != n:
+        raise InputError(f"bad BVH line {line} in {name}: {what} needs {n} numbers")
+    return np.array(vals)
+
+
 def read_bvh(path: str | Path) -> BvhMotion:
+    """Parse a BVH file; every problem is an InputError naming the line."""
     path = Path(path)
     try:
         lines = path.read_text(errors="replace").splitlines()
     except OSError as exc:
         raise InputError(f"cannot read BVH file {path}: {exc.strerror}") from None
     joints: list[BvhJoint] = []
-    stack: list[int] = []
-    i, in_end, pending_end = 0, False, None
+    stack: list[int] = []            # open joint blocks
+    depth_end = 0                    # >0 while inside an End Site block
+    pending: str | None = None       # what the next '{' opens: 'joint' or 'end'
+    i = 0
     while i < len(lines):
         tok = lines[i].split()
         i += 1
         if not tok:
             continue
         key = tok[0].upper()
+        if key in ("HIERARCHY",):
+            continue
         if key in ("ROOT", "JOINT"):
             if len(tok) < 2:
-                raise InputError(f"{path.name} line {i}: {key} without a name; the BVH hierarchy is malformed")
-            joints.append(BvhJoint(tok[1], stack[-1] if stack else -1, np.zeros(3)))
-            pending_end = None
+                raise InputError(f"bad BVH line {i} in {path.name}: {key} without a name")
+            if key == "JOINT" and not stack:
+                raise InputError(f"bad BVH line {i} in {path.name}: JOINT outside any parent block")
+            joints.append(BvhJoint(" ".join(tok[1:]), stack[-1] if stack else -1, np.zeros(3)))
+            pending = "joint"
         elif key == "END":
-            in_end = True
+            if not stack:
+                raise InputError(f"bad BVH line {i} in {path.name}: End Site outside any joint")
+            pending = "end"
         elif key == "{":
-            if not in_end:
+            if pending == "end" or depth_end:
+                depth_end += 1
+            elif pending == "joint":
                 stack.append(len(joints) - 1)
+            else:
+                raise InputError(f"bad BVH line {i} in {path.name}: '{{' without a joint")
+            pending = None
         elif key == "}":
-            if in_end:
-                in_end = False
+            if depth_end:
+                depth_end -= 1
             elif stack:
                 stack.pop()
-        elif key == "OFFSET":
-            try:
-                off = np.array([float(v) for v in tok[1:4]])
-            except ValueError:
-                raise InputError(f"{path.name} line {i}: OFFSET needs three numbers") from None
-            if in_end:
-                joints[stack[-1]].end_site = off
             else:
+                raise InputError(f"bad BVH line {i} in {path.name}: unmatched '}}'")
+        elif key == "OFFSET":
+            off = _numbers(tok[1:], 3, path.name, i, "OFFSET")
+            if depth_end:
+                joints[stack[-1]].end_site = off
+            elif joints:
                 joints[-1].offset = off
         elif key == "CHANNELS":
-            joints[-1].channels = tok[2:2 + int(tok[1])]
+            try:
+                n = int(tok[1])
+            except (ValueError, IndexError):
+                n = -1
+            chans = tok[2:]
+            if n < 0 or len(chans) != n or not joints or any(c.lower() not in _CHANNELS for c in chans):
+                raise InputError(f"bad BVH line {i} in {path.name}: CHANNELS needs a count and that many "
+                                 "X/Y/Z position/rotation names")
+            joints[-1].channels = chans
         elif key == "MOTION":
             break
+        else:
+            raise InputError(f"bad BVH line {i} in {path.name}: unexpected '{tok[0]}' in the HIERARCHY")
     if not joints:
         raise InputError(f"{path.name} has no HIERARCHY joints; is it a BVH file?")
+    if stack or depth_end:
+        raise InputError(f"{path.name}: the HIERARCHY has unclosed '{{' blocks; the file is truncated or malformed")
     frames, frame_time = None, None
-    while i < len(lines):
+    while i < len(lines) and frame_time is None:
         tok = lines[i].split()
         i += 1
         if tok[:1] == ["Frames:"]:
-            frames = int(tok[1])
+            frames = int(_numbers(tok[1:], 1, path.name, i, "Frames:")[0])
         elif tok[:2] == ["Frame", "Time:"]:
-            frame_time = float(tok[2])
-            break
-    if frame_time is None or frame_time <= 0:
+            frame_time = float(_numbers(tok[2:], 1, path.name, i, "Frame Time:")[0])
+        elif tok:
+            raise InputError(f"bad BVH line {i} in {path.name}: expected 'Frames:' and 'Frame Time:'")
+    if frame_time is None or not frame_time > 0:
         raise InputError(f"{path.name} has no valid 'Frame Time:' line; the MOTION header is malformed")
-    nch = sum(len(j.channels) for j in joints)
-    rows = [ln for ln in lines[i:] if ln.strip()]
-    try:
-        data = np.array([[float(v) for v in ln.split()] for ln in rows], dtype=np.float64)
-    except ValueError:
-        raise InputError(f"{path.name}: non-numeric motion data") from None
-    if data.ndim != 2 or data.shape[1] != nch:
-        raise InputError(f"{path.name}: motion rows have {data.shape[-1] if data.ndim == 2 else '?'} values, "
-                         f"the hierarchy declares {nch} channels")
-    if frames is not None and frames != data.shape[0]:
-        data = data[:frames]
+    data = _motion_rows(lines, i, sum(len(j.channels) for j in joints), path.name)
+    if frames is not None and data.shape[0] > frames:
+        data = data[:frames]           # trailing junk after the declared frames
+    if data.shape[0] == 0:
+        raise InputError(f"{path.name} has no motion frames")
     if not np.isfinite(data).all():
-        raise InputError(f"{path.name}: motion data contains NaN or inf")
-    return BvhMotion(joints, frame_time, data, {j.name: k for k, j in enumerate(joints)})
+        bad = int(np.argwhere(~np.isfinite(data))[0, 0])
+        raise InputError(f"{path.name}: motion frame {bad} contains NaN or inf values; fix or trim the file")
+    return BvhMotion(joints, frame_time, data)
 
 
-def leading_rest_frame(m: BvhMotion, jump_deg: float = 10.0) -> bool:
-    """True when frame 0 is an added rest/T-pose frame (all rotations ~0, then a jump into frame 1)."""
-    if m.data.shape[0] < 3:
-        return False
-    rot_cols = []
-    col = 0
-    for j in m.joints:
-        for ch in j.channels:
-            if ch.lower().endswith("rotation"):
-                rot_cols.append(col)
-            col += 1
-    r0, r1 = m.data[0, rot_cols], m.data[1, rot_cols]
-    return bool(np.abs(r0).max() < 1e-3 and np.abs(r1 - r0).max() > jump_deg)
-
-
-def drop_first_frame(m: BvhMotion) -> BvhMotion:
-    return BvhMotion(m.joints, m.frame_time, m.data[1:], m.names)
-
+def _motion_rows(lines: list[str], start: int, nch: int, name: str) -> np.ndarray:
+    """Frame rows -> (T, nch). Rows must hold nch numbers each (tabs, trailing blanks are fine)."""
+    rows = []
+    for k in range(start, len(lines)):
+        tok = lines[k].split()
+        if not tok:
+            continue
+        if len(tok) != nch:
+            raise InputError(f"bad BVH line {k + 1} in {name}: {len(tok)} values, the hierarchy declares "
+                             f"{nch} channels")
+        try:
+            rows.append([float(v) for v in tok])
+        except ValueError:
+            raise InputError(f"bad BVH line {k + 1} in {name}: non-numeric motion data") from None
+    return np.array(rows, dtype=np.float64).reshape(-1, nch)
