@@ -145,3 +145,40 @@ def test_ego_deleted_mid_run_stops_cleanly(fresh):
     bpy.context.scene.frame_set(7)
     assert not live.is_running()
     assert live.message().startswith("Live stopped:") and "\n" not in live.message()
+
+
+def test_imported_cmu_bvh_partner(fresh):
+    """A real rig: Blender's BVH importer on a shared CMU clip (DAZ names) is mapped and drives live."""
+    import addon_utils
+    from pathlib import Path
+    from remogen_blender import live, rig
+    bvh = Path(__file__).resolve().parents[3] / "shared" / "data" / "cmu" / "daz_friendly_120fps" / "05" / "05_01.bvh"
+    if not bvh.is_file():
+        pytest.skip("shared CMU data not available")
+    addon_utils.enable("io_anim_bvh")
+    try:
+        bpy.ops.import_anim.bvh(filepath=str(bvh), global_scale=0.01, axis_forward='-Z', axis_up='Y',
+                                update_scene_fps=False, update_scene_duration=True)
+        partner = fresh.active_object
+        bpy.ops.remogen.create_ego()
+        st = fresh.scene.remogen
+        st.partner = partner
+        assert st.bone_map_family == "daz" and all(item.bone for item in st.bone_map)
+        fresh.scene.frame_set(10)
+        j = rig.PartnerReader(partner, rig.bone_map_dict(st)).read(fresh.evaluated_depsgraph_get())
+        assert 1.3 < j[15, 2] - min(j[7, 2], j[8, 2]) < 1.8        # ankle to head: a person in metres
+        assert bpy.ops.remogen.live_start() == {'FINISHED'}
+        for f in range(11, 30):
+            fresh.scene.frame_set(f)
+        assert live.is_running(), live.message()
+        live.stop()
+        # the same clip imported at scale 1 is in centimetres: refused with a hint, nothing changes
+        bpy.ops.import_anim.bvh(filepath=str(bvh), global_scale=1.0, axis_forward='-Z', axis_up='Y',
+                                update_scene_fps=False, update_scene_duration=False)
+        st.partner = fresh.active_object
+        n_actions = len(bpy.data.actions)
+        with pytest.raises(RuntimeError, match="centimetres"):
+            bpy.ops.remogen.bake(frame_start=1, frame_end=10)
+        assert len(bpy.data.actions) == n_actions
+    finally:
+        addon_utils.disable("io_anim_bvh")
