@@ -17,7 +17,7 @@ import numpy as np
 
 from . import action as action_mod
 from ._runtime import UserError, runtime
-from .frame import MODEL_DT, FrameDriver, scene_fps
+from .frame import FrameDriver, scene_fps
 
 MAX_FRAMES = 100_000
 
@@ -48,16 +48,16 @@ def bake(scene: bpy.types.Scene, frame_start: int | None = None, frame_end: int 
     driver = FrameDriver(scene, model=model, keep_frames=None)
     t_start = time.perf_counter()   # generation and keying only: loading the model is not the bake's speed
     ego = driver.writer.object
-    n_model = int(math.ceil((f1 - f0) / fps / MODEL_DT - 1e-6)) + 1
+    n_model = int(math.ceil((f1 - f0) / fps / driver.dt - 1e-6)) + 1
     saved_frame = (scene.frame_current, scene.frame_subframe)
     saved_pose = _pose_snapshot(ego)
     ok = False
     try:
         for k in range(n_model):
-            f = f0 + k * MODEL_DT * fps
+            f = f0 + k * driver.dt * fps
             fi = int(math.floor(f + 1e-9))
             scene.frame_set(fi, subframe=max(0.0, f - fi))
-            driver.update(scene, bpy.context.evaluated_depsgraph_get(), model_time=k * MODEL_DT, write=False)
+            driver.update(scene, bpy.context.evaluated_depsgraph_get(), model_time=k * driver.dt, write=False)
             if progress is not None:
                 progress(k + 1, n_model)
         frames = np.arange(f0, f1 + 1, dtype=np.float64)

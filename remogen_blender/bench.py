@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> None:
     from . import register, unregister
     from ._runtime import runtime
     from .bake import bake
-    from .frame import MODEL_DT, FrameDriver, scene_fps
+    from .frame import FrameDriver, scene_fps
     from .scene import VOXEL_SIZE, world_triangles
 
     torch.set_num_threads(args.threads)
@@ -103,12 +103,12 @@ def run(args: argparse.Namespace) -> None:
         ticks, fsets = [], []
         warm = 24
         for k in range(warm + args.frames):
-            frame = scene.frame_start + k * MODEL_DT * fps
+            frame = scene.frame_start + k * driver.dt * fps
             fi = int(frame)
             t0 = time.perf_counter()
             scene.frame_set(fi, subframe=frame - fi)
             t1 = time.perf_counter()
-            driver.update(scene, bpy.context.evaluated_depsgraph_get(), model_time=k * MODEL_DT)
+            driver.update(scene, bpy.context.evaluated_depsgraph_get(), model_time=k * driver.dt)
             t2 = time.perf_counter()
             if k >= warm:
                 fsets.append(t1 - t0)
@@ -120,7 +120,7 @@ def run(args: argparse.Namespace) -> None:
         driver.restore_rest()
 
         # headless bake of the same scene
-        n_scene = int(round(args.frames * MODEL_DT * fps))
+        n_scene = int(round(args.frames * driver.dt * fps))
         res = bake(scene, scene.frame_start, scene.frame_start + n_scene - 1, model=model)
         _emit(metric="bake_model_fps", value=round(res.model_fps, 1), model_frames=res.model_frames,
               scene_frames=res.frames, seconds=round(res.seconds, 3), target_min=150.0, **common)

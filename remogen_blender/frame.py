@@ -20,7 +20,7 @@ from ._quat import qslerp
 from ._runtime import UserError, get_model, runtime, torch_error
 from .scene import SceneCache
 
-MODEL_DT = 0.1          # seconds per model frame (the model runs at 10 fps)
+MODEL_DT = 0.1          # seconds per model frame of the shipped models; a FrameDriver uses its model.fps
 MAX_CATCH_UP = 1.0      # live: a forward jump longer than this continues from the current pose instead
 # Blender clamps inf to float32 max, which passes a finiteness check and overflows later: bound positions.
 MAX_COORD = 1.0e5
@@ -71,6 +71,7 @@ class FrameDriver:
         self.writer = rig.EgoWriter(st.ego)
         self.reader = self._make_reader(st)
         self.model = model if model is not None else get_model()
+        self.dt = 1.0 / float(getattr(self.model, "fps", 1.0 / MODEL_DT))   # seconds per model frame
         rt = runtime()
         self.session = rt.ReactionSession(self.model, text=st.text, seed=st.seed, alpha=_alpha(st),
                                           guidance=st.guidance, fwsr=st.use_fwsr, scene=None)
@@ -154,7 +155,7 @@ class FrameDriver:
 
     def pose_at(self, model_time: float) -> Pose:
         """The pose at a model time already generated (clamped to the frames kept)."""
-        x = model_time / MODEL_DT
+        x = model_time / self.dt
         k0 = int(math.floor(x + _EPS))
         a = x - k0
         if k0 >= self.latest_index or a <= _EPS:
@@ -163,7 +164,7 @@ class FrameDriver:
 
     def poses_at(self, model_times: np.ndarray) -> Pose:
         """Poses at many model times at once (bake): pelvis (T, 3), local_rotations (T, 22, 4)."""
-        x = np.asarray(model_times, dtype=np.float64) / MODEL_DT
+        x = np.asarray(model_times, dtype=np.float64) / self.dt
         k0 = np.floor(x + _EPS).astype(np.int64)
         a = np.clip(x - k0, 0.0, 1.0)
         lo = np.clip(k0 - self.first_index, 0, len(self.frames) - 1)
@@ -186,11 +187,11 @@ class FrameDriver:
         depsgraph = depsgraph or bpy.context.evaluated_depsgraph_get()
         if model_time is None:
             model_time = scene_time(scene) - self.anchor
-            latest_t = self.latest_index * MODEL_DT
+            latest_t = self.latest_index * self.dt
             if model_time < self.last_time - _EPS or model_time > latest_t + MAX_CATCH_UP:
-                self.anchor = scene_time(scene) - (latest_t + MODEL_DT)
-                model_time = latest_t + MODEL_DT
-        need = int(math.ceil(model_time / MODEL_DT - _EPS))
+                self.anchor = scene_time(scene) - (latest_t + self.dt)
+                model_time = latest_t + self.dt
+        need = int(math.ceil(model_time / self.dt - _EPS))
         while self.latest_index < need:
             self.step(scene, depsgraph)
         pose = self.pose_at(model_time)
