@@ -30,7 +30,7 @@ class Motion:
     fps: float
     caption: str | None = None
     source: str = ""
-    fit_error_mm: dict | None = None
+    fit_error_mm: dict | None = None   # retargeting report: mean, max, legs_mean (mm), dir_deg, scale, unit, up
 
     @classmethod
     def from_pose(cls, local_rot: torch.Tensor, pelvis: torch.Tensor, fps: float, **kw) -> "Motion":
@@ -93,7 +93,8 @@ def load_motion(path: str | Path, fps: float | None = None, bone_map: dict[str, 
                          "an AMASS .npz")
     if not path.exists():
         raise InputError(f"motion file {path} does not exist; check the path")
-    row = index_row(path, index) if index is not None else None
+    # only a row naming this very file may set the rate (other variants of a trial differ: CC is 60 fps)
+    row = index_row(path, index, exact_only=True) if index is not None else None
     if fps is None and row:
         fps = float(row.get("fps_true") or row.get("fps") or 0) or None
     if fps is not None and not (np.isfinite(fps) and fps > 0):

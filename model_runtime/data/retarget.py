@@ -1,23 +1,25 @@
 """Retargeting any humanoid's world joint positions onto the SMPL-X 22-joint skeleton.
 
 Steps (`retarget`): find the source's up axis and unit, turn it Z-up and into metres, scale it so its
-legs are as long as SMPL-X's, then solve 22 global rotations joint by joint from the root outwards:
-each bone is aimed from where FK has put its joint at the source position of its child (so length
-differences do not pile up along a chain), and the twist about the bone comes from a side-to-side
-or bend-plane vector:
+legs are as long as SMPL-X's, rebuild the joints rigs disagree on, solve 22 global rotations joint by
+joint from the root outwards, then put the soles on the floor.
 
-- pelvis: exact left-right hip axis, up from the lower spine;
-- spine1..3, neck: aimed up the spine, twist shared out between the hip and shoulder axes;
-- hips / shoulders: aimed at knee / elbow, twist from the plane the limb bends in (knee bends
-  backwards, elbow forwards); a straight leg falls back on the direction the toes point;
-- collars, knees, elbows, ankles: the smallest swing from the parent (hinges stay hinges);
-- head, wrists, feet (no child to aim at): follow their parent.
+- Landmarks: rigs place the pelvis and spine joints very differently, so those targets are rebuilt
+  from the source's own geometry at SMPL-X's landmarks: the pelvis at SMPL-X's offset from the hip
+  midpoint in the source's pelvis frame, spine1..3 spaced along the source spine at SMPL-X's
+  proportions. Everything else is the bone map's joint.
+- Bone directions: the spine, neck, head and arms copy the source's bone directions; the legs aim
+  from where FK has put each joint at the child's target, so the feet land where the source's do
+  (contacts survive the change of proportions); collars aim at the source shoulder as placed
+  relative to spine3 (rigs put the collar joint anywhere between sternum and shoulder).
+- Twist about each bone: pelvis from the exact left-right hip axis; spine1..3 and neck from the hip
+  and shoulder axes, shared out along the spine; hips / shoulders from the plane the limb bends in
+  (knees bend backwards, elbows forwards; a straight leg falls back on where the toes point);
+  collars, knees, elbows and ankles take the smallest swing from their parent (hinges stay hinges);
+  head, wrists and feet (no child to aim at) follow their parent.
 
-Rigs disagree on where the pelvis and the spine joints sit, so those targets are rebuilt from the
-source's own geometry at SMPL-X's landmarks: the pelvis at SMPL-X's offset from the hip midpoint in
-the source's pelvis frame, spine1..3 spaced along the source spine at SMPL-X's proportions.
 The fit error compares FK of the result with these targets (the scaled source) after aligning the
-pelvis; the part of it that no rotation can remove is the difference in proportions.
+pelvis; most of what remains is the difference in proportions, which no rotation can remove.
 """
 from __future__ import annotations
 
@@ -174,9 +176,8 @@ _REST_HIP_MID = 0.5 * (_REST[J["left_hip"]] + _REST[J["right_hip"]])
 
 
 def _pelvis_frame(side: np.ndarray, torso: np.ndarray) -> np.ndarray:
-    """Rotation from the rest pelvis frame to the one given by the hip axis (exact) and the torso
-    direction hip midpoint -> neck. The whole torso, not the lowest spine bone, because rigs put their
-    first spine joint anywhere (CC's waist sits behind the hips, only 6 cm up)."""
+    """Rotation from the rest pelvis frame to the one given by the hip axis (exact) and an up vector
+    in the torso's terms (rest: hip midpoint -> neck; see `_pelvis_up`)."""
     rest_side = _REST[J["left_hip"]] - _REST[J["right_hip"]]
     return _two_vector(rest_side, _REST[J["neck"]] - _REST_HIP_MID, side, torso)
 
@@ -280,7 +281,7 @@ def solve_rotations(targets: np.ndarray, pelvis_rot: np.ndarray | None = None) -
             glob[:, j] = _two_vector(rest_aim, w * rest_hips_u + (1 - w) * rest_chest_u,
                                      aim, w * hips_u + (1 - w) * chest_u)
         elif JOINT_NAMES[j].endswith(("_hip", "_shoulder")):
-            glob[:, j] = _limb_root(j, c, aim, rest_aim, swing, tg)
+            glob[:, j] = _limb_root(c, aim, rest_aim, swing, tg)
         else:
             glob[:, j] = swing
     return glob, pos[:, 0]
@@ -306,10 +307,10 @@ def _aim(j: int, c: int, tg: np.ndarray, pos: np.ndarray) -> np.ndarray:
     return tg[:, c] - tg[:, j]
 
 
-def _limb_root(j: int, c: int, aim: np.ndarray, rest_aim: np.ndarray, swing: np.ndarray,
+def _limb_root(c: int, aim: np.ndarray, rest_aim: np.ndarray, swing: np.ndarray,
                tg: np.ndarray) -> np.ndarray:
-    """Hip or shoulder: aimed at the knee / elbow, twisted so the limb bends in its hinge plane."""
-    g = JOINT_NAMES[c + 0]
+    """Hip or shoulder: aimed at its child c (knee / elbow), twisted so the limb bends in its hinge plane."""
+    g = JOINT_NAMES[c]
     end = J[g.replace("knee", "ankle").replace("elbow", "wrist")]
     a = _unit(aim)
     bend, rel = _perp(tg[:, end] - tg[:, c], a)
