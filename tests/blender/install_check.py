@@ -8,6 +8,7 @@ import os
 import sys
 
 mode, zip_path, model_file = sys.argv[1:4]
+index_dir = sys.argv[4] if len(sys.argv) > 4 else ""   # a PEP 503 index holding remogen-fakedep
 out = {}
 try:
     import bpy
@@ -24,6 +25,14 @@ try:
     ext = sys.modules[mod]
     out["ext_dir"] = os.path.dirname(ext.__file__)
     bpy.context.preferences.addons[mod].preferences.model_file = model_file
+    if index_dir:   # the preferences' "Install PyTorch" button, pointed at a local index and a fake package
+        prefs = bpy.context.preferences.addons[mod].preferences
+        prefs.torch_requirement = "remogen-fakedep"
+        prefs.torch_index = "file://" + index_dir
+        out["install_torch"] = sorted(bpy.ops.remogen.install_torch())
+        import remogen_fakedep
+        out["private_fakedep"] = remogen_fakedep.__file__
+        del sys.modules["remogen_fakedep"]
     out["fakedep"] = None
     try:
         import remogen_fakedep

@@ -44,10 +44,11 @@ def _build(args: list[str]) -> subprocess.CompletedProcess:
                           timeout=300)
 
 
-def _check_install(mode: str, zip_path: str, user: Path, model: Path) -> dict:
+def _check_install(mode: str, zip_path: str, user: Path, model: Path, index: Path | None = None) -> dict:
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "REMOGEN_MODEL_FILE")}
     env["BLENDER_USER_RESOURCES"] = str(user)
-    r = subprocess.run([sys.executable, str(HERE / "install_check.py"), mode, zip_path, str(model)],
+    extra = [str(index)] if index else []
+    r = subprocess.run([sys.executable, str(HERE / "install_check.py"), mode, zip_path, str(model), *extra],
                        cwd=user.parent, env=env, capture_output=True, text=True, timeout=300)
     line = next((ln for ln in r.stdout.splitlines() if ln.startswith("RESULT ")), None)
     assert line, r.stdout[-2000:] + r.stderr[-2000:]
@@ -77,7 +78,14 @@ def test_slim_zip_builds_validates_installs_and_runs(tmp_path, tiny_model_file):
     weights = ROOT / "model_runtime" / "weights" / "default.pt"
     assert ("model_runtime/weights/default.pt" in names) == weights.is_file()
     user = tmp_path / "user"
-    _assert_works(_check_install("zip", str(z), user, tiny_model_file), user)
+    index = tmp_path / "index"                        # a local package index for the "Install PyTorch" button
+    wheel = _fake_wheel(tmp_path / "wheels")
+    (index / "remogen-fakedep").mkdir(parents=True)
+    (index / "remogen-fakedep" / "index.html").write_text(f'<a href="file://{wheel}">{wheel.name}</a>')
+    out = _check_install("zip", str(z), user, tiny_model_file, index)
+    _assert_works(out, user)
+    assert out["install_torch"] == ["FINISHED"]
+    assert "remogen_blender" in out["private_fakedep"] and out["private_fakedep"].startswith(str(user))
 
 
 def test_wheels_zip_and_install_folder(tmp_path, tiny_model_file):
