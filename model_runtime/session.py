@@ -61,6 +61,9 @@ def _as_transform(rot: torch.Tensor, trans: torch.Tensor) -> np.ndarray:
     return m
 
 
+MAX_COORD = 1e5  # metres; anything larger is a broken transform, not a scene
+
+
 def _check_partner(partner: Any) -> np.ndarray | None:
     if partner is None:
         return None
@@ -70,10 +73,12 @@ def _check_partner(partner: Any) -> np.ndarray | None:
         raise InputError("partner must be a (22, 3) array of world joint positions or None") from None
     if p.shape != (NUM_JOINTS, 3):
         raise InputError(f"partner joints must have shape (22, 3) (SMPL-X joint order, metres), got {p.shape}")
-    bad = ~np.isfinite(p).all(axis=1)
+    # Blender stores inf as float32 max, so "finite" alone is not enough: bound the magnitude too
+    bad = ~(np.isfinite(p) & (np.abs(p) < MAX_COORD)).all(axis=1)
     if bad.any():
         names = ", ".join(JOINT_NAMES[i] for i in np.flatnonzero(bad)[:4])
-        raise InputError(f"partner joints contain NaN or inf ({names}); fix the partner's transforms or pass None")
+        raise InputError(f"partner joints contain NaN, inf or values beyond {MAX_COORD:.0e} m ({names}); "
+                         "fix the partner's transforms or pass None")
     extent = float(np.ptp(p, axis=0).max())
     if extent > 5.0:
         raise InputError(f"partner skeleton spans {extent:.1f} m; it looks like centimetres: scale it by 0.01")
@@ -87,8 +92,8 @@ def _check_point(name: str, v: Any) -> np.ndarray | None:
         p = np.asarray(v, dtype=np.float32).reshape(-1)
     except (TypeError, ValueError):
         raise InputError(f"{name} must be an (x, y, z) point in metres or None") from None
-    if p.shape != (3,) or not np.isfinite(p).all():
-        raise InputError(f"{name} must be a finite (x, y, z) point in metres or None, got {v!r}")
+    if p.shape != (3,) or not (np.isfinite(p) & (np.abs(p) < MAX_COORD)).all():
+        raise InputError(f"{name} must be a finite (x, y, z) point within {MAX_COORD:.0e} m, or None; got {v!r}")
     return p
 
 

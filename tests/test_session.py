@@ -109,6 +109,7 @@ def test_reset_from_frame(tiny_model):
 
 @pytest.mark.parametrize("partner, words", [
     (np.full((22, 3), np.nan), "NaN"),
+    (np.full((22, 3), 3.4e38), "beyond"),
     (np.zeros((21, 3)), "shape (22, 3)"),
     (np.zeros((22, 4)), "shape (22, 3)"),
     (np.random.default_rng(0).normal(size=(22, 3)) * 100, "centimetres"),
