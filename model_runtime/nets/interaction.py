@@ -115,17 +115,21 @@ class MetaInteractionModule(nn.Module):
         return self.blocks[self.inject_layers.index(layer)] if layer in self.inject_layers else None
 
 
-def compose_residuals(deltas: list[torch.Tensor], alphas: list[float | torch.Tensor],
-                      eps: float = 1e-6) -> torch.Tensor | None:
-    """Delta_final = s * sum_i alpha_i Delta_i, s = min(1, max_i ||Delta_i|| / (||sum|| + eps)).
+def compose_residuals(deltas: list[torch.Tensor], alphas: list[float | torch.Tensor]) -> torch.Tensor | None:
+    """Delta_final = s * sum_i alpha_i Delta_i, s = min(1, max_i ||Delta_i|| / ||sum||).
 
-    Norms are per sample over all (T x d) entries. Branches with alpha == 0 should not be passed in
-    (the caller skips them, so all-zero alphas give exactly the prior).
+    Norms are per sample over all (T x d) entries. s is exactly 1 whenever the sum is within the
+    largest branch norm: besides "unchanged when under", this keeps the gradient alive at Delta = 0,
+    where zero-initialised modules start (a ratio with an epsilon would give s = 0 there and no
+    gradient at all). Branches with alpha == 0 should not be passed in (the caller skips them, so
+    all-zero alphas give exactly the prior).
     """
     if not deltas:
         return None
     total = sum(a * d for a, d in zip(alphas, deltas))
     norms = torch.stack([d.flatten(1).norm(dim=1) for d in deltas], 0)  # (n, B)
     largest = norms.max(0).values
-    scale = torch.clamp(largest / (total.flatten(1).norm(dim=1) + eps), max=1.0)
+    total_norm = total.flatten(1).norm(dim=1)
+    over = total_norm > largest
+    scale = torch.where(over, largest / torch.where(over, total_norm, torch.ones_like(total_norm)), 1.0)
     return total * scale.view(-1, *([1] * (total.dim() - 1)))
