@@ -82,3 +82,44 @@ def test_all_five_stages_run_in_order(tmp_path, lib):
     model = load_model(out / "model.pt")
     assert list(model.meta["stages"]) == ["vae", "prior", "hhi", "hsi", "fwsr"]
     assert float(model.fwsr.sensitivity.mean()) == pytest.approx(1.0, rel=1e-4)   # computed, normalised
+
+
+def test_ema_warms_up_so_short_stages_do_not_ship_their_initialisation():
+    from model_runtime.train import EMA
+    p = torch.nn.Parameter(torch.zeros(3))
+    ema = EMA([p], decay=0.999)
+    assert ema.current_decay() == pytest.approx(0.1)      # (1 + 0) / (10 + 0)
+    with torch.no_grad():
+        p.fill_(1.0)
+    for _ in range(200):
+        ema.update()
+    # 200 updates toward a constant 1: the average is essentially there (without the warm-up, 0.18)
+    assert float(ema.shadow[0].min()) > 0.9
+    assert ema.current_decay() == pytest.approx(201 / 210)
+    for _ in range(20000):
+        ema.update()
+    assert ema.current_decay() == 0.999
+
+
+def test_hhi_windows_favour_the_frames_where_the_partner_is_near(lib):
+    import numpy as np
+    from model_runtime.data.pairs import HHIPair
+    from model_runtime.training import samples
+    model = load_model(config="tiny")
+    clip = 0
+    n = lib.frames(clip)
+    a = int(lib.offsets[clip])
+    partner = np.zeros((n, 22, 3), np.float32)
+    partner[:, :, :2] = lib.pelvis[a:a + n, None, :2] + 100.0     # far away ...
+    near = n - 5
+    partner[near:, :, :2] = lib.pelvis[a + near:a + n, None, :2] + 1.0  # ... until the last 5 frames
+    s = SegmentSampler(lib, [clip], model.cfg, model.stats, seed=0, pairs=[HHIPair(clip, partner, "approach_face")])
+    span, h = model.cfg.history + model.cfg.future, model.cfg.history
+    close = s._close_starts[0].tolist()
+    assert close and all(st + span > near for st in close) and all(st + h <= n for st in close)
+    starts = [s._window_start(0, lib.features(clip).shape[0]) for _ in range(400)]
+    share = np.mean([st in close for st in starts])
+    uniform = len(close) / (lib.features(clip).shape[0] - span + 1)
+    # half drawn among the close windows, half uniform (which lands there `uniform` of the time)
+    expected = samples.INTERACTION_SHARE + (1 - samples.INTERACTION_SHARE) * uniform
+    assert abs(share - expected) < 0.1

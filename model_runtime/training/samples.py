@@ -3,7 +3,10 @@
 A sample is a window of H + F frames of a clip, canonicalised on its first frame (exactly what the
 session does online). HHI samples add the partner's recent joints in that frame, with a random lag of
 up to one segment because online the diffusion runs ahead on stale partner frames; HSI samples add the
-ego-local occupancy and the goal. FWSR samples add, for a random frame f of the future, the latest H
+ego-local occupancy and the goal. For HHI pairs half the windows are drawn among those whose future
+brings the partner within INTERACTION_RANGE of the ego: uniform windows are mostly mid-walk, where the
+partner changes nothing, and a module trained on them learns a partner-independent bias instead of the
+reaction (measured: shuffling partners across a batch cost only 0.003 of its 0.145 loss). FWSR samples add, for a random frame f of the future, the latest H
 real frames and partner frames as the session sees them at frame f.
 """
 from __future__ import annotations
@@ -17,6 +20,9 @@ from ..config import ModelConfig
 from ..data.library import ClipLibrary
 from ..features import FeatureStats, canonicalize, to_canonical, world_points_to_canonical
 from ..skeleton import NUM_JOINTS, forward_kinematics
+
+INTERACTION_RANGE = 2.5   # m between the pelvises: the partner is close enough to shape the next segment
+INTERACTION_SHARE = 0.5   # share of HHI windows drawn among those in range
 
 
 @dataclass
@@ -56,6 +62,26 @@ class SegmentSampler:
         self.weights = torch.from_numpy(weights / weights.sum())
         self.gen = torch.Generator().manual_seed(seed)
         self._partner_cache: dict[int, torch.Tensor] = {}
+        self._close_starts = [self._interaction_starts(i, k) for i, k in self.items] if pairs is not None else None
+
+    def _interaction_starts(self, clip: int, k: int) -> torch.Tensor:
+        """Window starts whose future frames bring the partner's pelvis within INTERACTION_RANGE."""
+        a = int(self.lib.offsets[clip])
+        n = self.lib.frames(clip)
+        ego = np.asarray(self.lib.pelvis[a:a + n, :2], np.float64)
+        partner = np.asarray(self.pairs[k].partner[:n, 0, :2], np.float64)
+        close = np.linalg.norm(ego - partner, axis=1) < INTERACTION_RANGE
+        starts = n - 1 - self.span + 1  # windows over the n - 1 feature rows
+        h = self.cfg.history
+        ok = [s for s in range(starts) if close[s + h:s + self.span].any()]
+        return torch.tensor(ok, dtype=torch.long)
+
+    def _window_start(self, p: int, rows: int) -> int:
+        if self._close_starts is not None and len(self._close_starts[p]) and \
+                float(torch.rand((), generator=self.gen)) < INTERACTION_SHARE:
+            c = self._close_starts[p]
+            return int(c[int(torch.randint(0, len(c), (1,), generator=self.gen))])
+        return int(torch.randint(0, rows - self.span + 1, (1,), generator=self.gen))
 
     def _partner_world(self, k: int) -> torch.Tensor:
         if k not in self._partner_cache:
@@ -70,7 +96,7 @@ class SegmentSampler:
         for p in picks:
             clip, k = self.items[p]
             feats = self.lib.features(clip)
-            s = int(torch.randint(0, feats.shape[0] - self.span + 1, (1,), generator=self.gen))
+            s = self._window_start(p, feats.shape[0])
             seg, rot, trans = canonicalize(feats[s:s + self.span])
             seg = self.stats.normalize(seg)
             hist.append(seg[:h])
