@@ -12,6 +12,13 @@ from model_runtime.evaluate import box_scenario, partner_scenario
 
 pytestmark = pytest.mark.skipif(not DEFAULT_WEIGHTS.exists(), reason="no shipped default weights")
 
+# Known failures of the shipped weights, kept strict so that a model which passes turns CI red until the
+# marks come off. Measured (seeds 0, 1): HHI on, facing error 77 deg and clearance 0.09 m vs prior-only
+# 51 deg / 0.31 m; HSI on, 32 % of frames in the box and 0.50 m from the goal vs 28 % / 0.39 m. The open
+# data has no in-place turns and no walk-around-an-obstacle paths, and the generated pairs never show a
+# partner walking up to a standing ego, so neither module has seen these reactions (MODEL_CARD.md).
+NOT_LEARNED_YET = pytest.mark.xfail(strict=True, reason="shipped weights do not show this reaction yet (issue 3)")
+
 # the partner walks 3 m at 1.2 m/s (2.5 s) and stops at 1 m; we look one second of model time later
 PARTNER_FRAMES = 25 + 10
 BOX_FRAMES = 60
@@ -22,6 +29,7 @@ def model():
     return load_model()
 
 
+@NOT_LEARNED_YET
 def test_ego_turns_to_face_an_approaching_partner(model):
     yaws = (math.pi / 2, -math.pi / 2)   # the ego starts side-on to the partner
     on, _ = partner_scenario(model, PARTNER_FRAMES, {"hhi": 1.0, "hsi": 0.0}, seeds=(0, 1), yaws=yaws)
@@ -31,6 +39,7 @@ def test_ego_turns_to_face_an_approaching_partner(model):
     assert off["facing_error_deg"] > on["facing_error_deg"] + 20.0, (on, off)
 
 
+@NOT_LEARNED_YET
 def test_ego_reaches_a_goal_around_a_box(model):
     on = box_scenario(model, BOX_FRAMES, {"hhi": 0.0, "hsi": 1.0}, seeds=(0, 1))
     off = box_scenario(model, BOX_FRAMES, {"hhi": 0.0, "hsi": 0.0}, seeds=(0, 1))
