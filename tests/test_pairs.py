@@ -164,3 +164,11 @@ def test_builders_are_deterministic_and_seeded(lib):
     s3 = build_hsi_scenes(lib, ids, seed=8)
     assert any(x.vertices.shape != y.vertices.shape or not np.array_equal(x.vertices, y.vertices)
                for x, y in zip(s1, s3))
+
+
+def test_hhi_pairs_can_be_limited_to_some_kinds(lib):
+    everything = build_hhi_pairs(lib, list(range(len(lib))), seed=0, per_clip=3)
+    some = build_hhi_pairs(lib, list(range(len(lib))), seed=0, per_clip=3, kinds=("approach_face", "greet"))
+    assert some and {p.kind for p in some} <= {"approach_face", "greet"}
+    assert {p.ego for p in some} >= {0, 2}          # a walk still gets approach_face, a gesture greet
+    assert "follow" in {p.kind for p in everything}   # so the filter did leave something out

@@ -417,7 +417,8 @@ def _hhi_one(kind: str, ego: int, clips: _Clips, rng: np.random.Generator, stand
     raise ValueError(f"unknown HHI pair kind {kind!r}; use one of {', '.join(HHI_KINDS)}")
 
 
-def build_hhi_pairs(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_clip: int = 2) -> list[HHIPair]:
+def build_hhi_pairs(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_clip: int = 2,
+                    kinds: tuple[str, ...] = HHI_KINDS) -> list[HHIPair]:
     """Up to `per_clip` HHI pairs per clip of `clip_ids` (rules in the module docstring).
 
     Clips no rule fits (e.g. dance, jumps, side steps) give none. Deterministic for a seed; a clip's pairs
@@ -429,10 +430,10 @@ def build_hhi_pairs(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_cl
     out: list[HHIPair] = []
     for ego in clip_ids:
         rng = np.random.default_rng([seed, int(ego)])
-        kinds = _hhi_kinds(clips.path(ego), lib.captions[ego])
-        if not kinds or per_clip <= 0:
+        fits = [k for k in _hhi_kinds(clips.path(ego), lib.captions[ego]) if k in kinds]
+        if not fits or per_clip <= 0:
             continue
-        order = kinds[:1] + [kinds[1:][i] for i in rng.permutation(len(kinds) - 1)]
+        order = fits[:1] + [fits[1:][i] for i in rng.permutation(len(fits) - 1)]
         for n in range(per_clip):
             kind = order[n % len(order)]
             for _ in range(8):
