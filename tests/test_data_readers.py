@@ -533,3 +533,21 @@ def test_cmu_captions_from_the_index():
     assert caption_for(shared("cmu/daz_friendly_120fps/07/07_01.bvh"), index) == "a person walks"
     assert caption_for(shared("cmu/cc_retarget_60fps/002/002_05.bvh"), index) == "a person punches"
     assert caption_for(shared("cmu/daz_friendly_120fps/07/07_01.bvh")) is None
+
+
+# ------------------------------------------------------------------------------ Bandai repository checkout
+
+def test_bandai_repository_adds_only_takes_the_data_folder_lacks(tmp_path):
+    """--bandai-repo reads the repository layout, takes content/style from the file name and skips clips
+    the data folder already has, so a larger run never counts a clip twice."""
+    from model_runtime.data.library import bandai_repository_files
+    src = shared("bandai/dataset-2/data/dataset-2_walk-turn-left_normal_001.bvh")
+    data = tmp_path / "repo" / "dataset" / "Bandai-Namco-Research-Motiondataset-2" / "data"
+    data.mkdir(parents=True)
+    (data / src.name).write_bytes(src.read_bytes())                                   # already in shared/data
+    (data / "dataset-2_walk-turn-left_normal_042.bvh").write_bytes(src.read_bytes())  # a take it lacks
+    (data / "README.bvh").write_text("not a take")                                     # not a take name
+    files = bandai_repository_files(tmp_path / "repo", skip={src.stem})
+    assert [(p.name, s, r["content"], r["style"], r["take"]) for p, s, r in files] == [
+        ("dataset-2_walk-turn-left_normal_042.bvh", "bandai", "walk-turn-left", "normal", "042")]
+    assert bandai_caption(files[0][2]["content"], files[0][2]["style"]) == "a person walks and turns left"

@@ -130,3 +130,19 @@ def shared_data_files(data_dir: str | os.PathLike, cmu_only: bool = False) -> li
                 if p.suffix.lower() == ".bvh" and p.exists():
                     out.append((p, source, row))
     return out
+
+
+def bandai_repository_files(repo_dir: str | os.PathLike, skip: set[str] = frozenset()) -> list[tuple[Path, str, dict]]:
+    """(path, "bandai", row) for every BVH of a checkout of the Bandai Namco repository
+    (`dataset/Bandai-Namco-Research-Motiondataset-{1,2}/data/*.bvh`), for a larger training run than the
+    project's data folder holds (it keeps 3 takes per content/style of dataset-2; the repository has 2,902).
+    Content and style come from the file name `dataset-N_<content>_<style>_<take>.bvh`; stems in `skip`
+    (clips already read from the data folder) are left out so no clip is counted twice."""
+    root = Path(repo_dir)
+    out = []
+    for p in sorted(root.glob("dataset/Bandai-Namco-Research-Motiondataset-*/data/*.bvh")):
+        parts = p.stem.split("_")
+        if len(parts) != 4 or p.stem in skip:
+            continue
+        out.append((p, "bandai", {"file": p.name, "content": parts[1], "style": parts[2], "take": parts[3]}))
+    return out
