@@ -10,7 +10,8 @@ A resumable state (weights, EMA, optimiser, step, RNG) goes to OUT/STAGE.state.p
 rerunning the same command continues from it. Losses go to OUT/STAGE.log.jsonl.
 
 Multi-process / multi-machine: `torchrun --nproc_per_node N -m model_runtime.train STAGE ...` runs
-DistributedDataParallel over gloo (CPU) or nccl (CUDA); each rank draws its own batches.
+DistributedDataParallel over gloo on CPU cores; each rank draws its own batches (so --batch is per rank:
+8 ranks at --batch 16 train with the recipe's 128 per step).
 """
 from __future__ import annotations
 
@@ -192,7 +193,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         os.replace(tmp, state_path)
 
     with log_path.open("a") as log:
-        while step < total and (deadline is None or time.time() < deadline):
+        while step < total and not _past(deadline, world):
             b = tr.sample(batch, fwsr=(stage == "fwsr"))
             loss, parts = ddp(b, gen)
             opt.zero_grad(set_to_none=True)
@@ -249,6 +250,17 @@ def validate(loss_mod: StageLoss, module: torch.nn.Module, ema: EMA, va: Segment
     return total / batches
 
 
+def _past(deadline: float | None, world: int) -> bool:
+    """Whether --minutes is up. Under DDP rank 0's clock decides for all ranks (one tiny broadcast per step):
+    ranks that stopped on their own clocks would leave the others waiting in an all-reduce forever."""
+    if deadline is None:
+        return False
+    done = torch.tensor([float(time.time() >= deadline)])
+    if world > 1:
+        dist.broadcast(done, 0)
+    return bool(done.item())
+
+
 def _last_val(log_path: Path) -> float | None:
     val = None
     with log_path.open() as fh:
@@ -287,7 +299,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.threads:
         torch.set_num_threads(args.threads)
     if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not dist.is_initialized():
-        dist.init_process_group("nccl" if torch.cuda.is_available() else "gloo")
+        dist.init_process_group("gloo")   # training runs on CPU tensors (the model is small); nccl needs CUDA ones
     try:
         lib_path = Path(args.library)
         if not lib_path.exists():

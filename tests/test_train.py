@@ -63,16 +63,28 @@ def test_later_stage_without_earlier_says_so(tmp_path, lib):
         train_stage("prior", tmp_path / "empty", lib, config="tiny", steps=1, progress=False)
 
 
-def test_two_process_ddp_with_gloo(tmp_path, lib):
+def _run_ddp(tmp_path, lib, *args: str):
     lib.save(tmp_path / "clips.npz")
     env = dict(os.environ, PYTHONPATH=str(ROOT), OMP_NUM_THREADS="1")
     cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node", "2",
            "-m", "model_runtime.train", "vae", "--library", str(tmp_path / "clips.npz"), "--out",
-           str(tmp_path / "ddp"), "--config", "tiny", "--steps", "3", "--batch", "4", "--no-progress"]
+           str(tmp_path / "ddp"), "--config", "tiny", "--batch", "4", "--no-progress", *args]
     res = subprocess.run(cmd, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr[-2000:]
-    model = load_model(tmp_path / "ddp" / "model.pt")
-    assert model.meta["stages"]["vae"]["world_size"] == 2 and model.meta["stages"]["vae"]["steps"] == 3
+    return load_model(tmp_path / "ddp" / "model.pt").meta["stages"]["vae"]
+
+
+def test_two_process_ddp_with_gloo(tmp_path, lib):
+    stage = _run_ddp(tmp_path, lib, "--steps", "3")
+    assert stage["world_size"] == 2 and stage["steps"] == 3
+
+
+def test_ddp_time_limit_stops_every_rank_together(tmp_path, lib):
+    """--minutes under DDP: rank 0's clock decides for all, so no rank is left waiting in an all-reduce."""
+    stage = _run_ddp(tmp_path, lib, "--steps", "1000000", "--minutes", "0.05")
+    assert 0 < stage["steps"] < 1000000
+    state = torch.load(tmp_path / "ddp" / "vae.state.pt", weights_only=True)
+    assert state["step"] == stage["steps"]
 
 
 def test_all_five_stages_run_in_order(tmp_path, lib):
