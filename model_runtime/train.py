@@ -46,7 +46,7 @@ DEFAULT_STEPS = {k: v[0] for k, v in RECIPE.items()}
 # the module learned "walk on toward a person ahead" and walked the ego into a partner standing 3 m ahead
 # (clearance 0.01-0.07 m at alpha 1 against 0.04-0.41 m prior-only); without it the side-on approach
 # scenario's facing error at 90 degrees fell from 87 to 42 degrees (prior 60), measured here.
-HHI_TRAIN_KINDS = ("approach_face", "greet", "avoid_blocker")
+HHI_TRAIN_KINDS = ("approach_face", "greet", "avoid_blocker", "turn_to_face")
 
 
 def _rank() -> tuple[int, int]:
@@ -81,6 +81,11 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
     pairs_tr = pairs_va = scenes_tr = scenes_va = None
     if stage in ("hhi", "fwsr"):
         from .data.pairs import build_hhi_pairs
+        from .data.turns import add_pivot_turns
+        # turned copies of standing clips: the data has no turn on the spot (data/turns.py)
+        lib, turned = add_pivot_turns(lib, train_ids + val_ids, seed=seed)
+        train_ids = train_ids + [i for i in turned if not lib.is_held_out(i)]
+        val_ids = val_ids + [i for i in turned if lib.is_held_out(i)]
         pairs_tr = build_hhi_pairs(lib, train_ids, seed=seed, kinds=HHI_TRAIN_KINDS)
         pairs_va = build_hhi_pairs(lib, val_ids, seed=seed + 1, kinds=HHI_TRAIN_KINDS)
     if stage == "hsi":

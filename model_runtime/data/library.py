@@ -25,8 +25,9 @@ LICENCES = {"cmu": "CMU Graphics Lab Motion Capture Database (commercial use all
 
 
 def held_out(name: str, fraction: float = 0.1) -> bool:
-    """Deterministic split by clip name (stable across machines and runs)."""
-    h = int(hashlib.sha1(name.encode()).hexdigest()[:8], 16)
+    """Deterministic split by clip name (stable across machines and runs). A derived clip named
+    `<source>#<variant>` (data/turns.py) falls on its source's side, so no source leaks across the split."""
+    h = int(hashlib.sha1(name.split("#")[0].encode()).hexdigest()[:8], 16)
     return (h % 1000) < fraction * 1000
 
 

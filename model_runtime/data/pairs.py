@@ -7,7 +7,7 @@ motion reads as a plausible reaction to it. Every generator checks what it guara
 closer than MIN_CLEARANCE to the ego; no ego joint below 1.5 m inside an obstacle, checked on the
 voxel grid the model will read) and resamples or skips a placement that breaks it.
 
-HHI (stand-in for Inter-X), `build_hhi_pairs`, one of four rules per pair:
+HHI (stand-in for Inter-X), `build_hhi_pairs`, one of five rules per pair:
     approach_face  a walking ego: a standing partner waits ~1 m beyond the point where the walk ends
                    (0.9-1.2 m, plus 0.3 s of the final speed: captured walks end mid-stride), facing
                    back along the walk, so the approach ends in front of and facing the partner.
@@ -18,6 +18,9 @@ HHI (stand-in for Inter-X), `build_hhi_pairs`, one of four rules per pair:
     avoid_blocker  a walk-turn clip: a standing partner on the straight-ahead line of the pre-turn walk,
                    0.6-1.1 m past the farthest point the ego's body reaches on that line, facing the
                    ego, so the turn reads as turning away from someone blocking the way.
+    turn_to_face   a turned copy of a standing clip (`<name>#turn<k>`, data/turns.py: the one exception to
+                   the rule below, since no clip turns on the spot): a standing partner 1.0-2.4 m ahead of
+                   where the turn ends, facing the ego, so the turn reads as turning to face someone.
 Partners are bodies from *other* real clips (standing clips for the waiting partners, straight walks
 for the leader), moved rigidly (standing) or re-rooted along the path (leader), with a random body
 scale in [0.9, 1.1] and a random timing offset in [-0.5, 0.5] s.
@@ -268,7 +271,7 @@ def _point_at(pts: np.ndarray, s: np.ndarray, q: np.ndarray) -> tuple[np.ndarray
 
 
 # ----------------------------------------------------------------------------- HHI
-HHI_KINDS = ("approach_face", "follow", "greet", "avoid_blocker")
+HHI_KINDS = ("approach_face", "follow", "greet", "avoid_blocker", "turn_to_face")
 
 
 @dataclass(eq=False)
@@ -328,6 +331,8 @@ def _partner_pools(clips: _Clips) -> tuple[list[int], list[int]]:
     """(standing clips, straight forward walks) of the whole library, partners' sources."""
     standing, walking = [], []
     for i in range(len(clips.lib)):
+        if "#" in clips.lib.names[i]:   # derived copies (turns) are not partners' sources
+            continue
         p = clips.path(i)
         if p.standing:
             standing.append(i)
@@ -397,6 +402,13 @@ def _hhi_one(kind: str, ego: int, clips: _Clips, rng: np.random.Generator, stand
         target = end + d * path.h_end + float(rng.uniform(-0.15, 0.15)) * side
         face = _unit(end - target)
         return place_standing(src, frames, int(frames[-1]), target, face, scale)
+    if kind == "turn_to_face":
+        end = ej[-1, 0, :2].astype(np.float64)
+        face = path.facing[-3:].mean(0)
+        face = _unit(face)
+        side = np.array([-face[1], face[0]])
+        target = end + float(rng.uniform(1.0, 2.4)) * face + float(rng.uniform(-0.15, 0.15)) * side
+        return place_standing(src, frames, int(frames[-1]), target, -face, scale)
     if kind == "greet":
         mean_face = _unit(path.facing.mean(0))
         centre = ej[:, 0, :2].mean(0)
@@ -430,7 +442,8 @@ def build_hhi_pairs(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_cl
     out: list[HHIPair] = []
     for ego in clip_ids:
         rng = np.random.default_rng([seed, int(ego)])
-        fits = [k for k in _hhi_kinds(clips.path(ego), lib.captions[ego]) if k in kinds]
+        rules = ["turn_to_face"] if "#turn" in lib.names[ego] else _hhi_kinds(clips.path(ego), lib.captions[ego])
+        fits = [k for k in rules if k in kinds]
         if not fits or per_clip <= 0:
             continue
         order = fits[:1] + [fits[1:][i] for i in rng.permutation(len(fits) - 1)]
