@@ -242,6 +242,10 @@ class ReactionSession:
             # the latest H emitted frames, already canonical and normalised in this segment's frame
             recent = seg["emitted"][-self.cfg.history:].unsqueeze(0)
             partner, present = self._partner_window(seg["rot"], seg["trans"], self.cfg.history)
+            if self._alpha["hhi"] == 0.0:
+                # alpha_HHI = 0 means "ignore the partner": FWSR's refiner reads partner frames too, so it
+                # sees none (measured: with them it turned a prior-only ego toward the partner).
+                present = torch.zeros_like(present)
             z = self.model.refine(seg["z0"], recent, partner, present, f)
             feat_n = self.model.decode(seg["hist_n"], z)[0, f]
         else:

@@ -82,6 +82,17 @@ def test_fwsr_changes_frames_after_the_first_of_a_segment(tiny_model):
     assert not np.allclose(on[3].joints, off[3].joints)
 
 
+def test_alpha_hhi_zero_ignores_the_partner_with_fwsr_on(tiny_model):
+    """alpha_HHI = 0 hides the partner from FWSR's refiner too: the frames are those of no partner at all."""
+    def run(alpha, partner):
+        s = ReactionSession(tiny_model, text="walk", seed=0, alpha={"hhi": alpha, "hsi": 0.0}, fwsr=True)
+        s.reset(yaw=0.3)
+        return np.stack([s.step(partner=None if partner is None else partner[i]).joints for i in range(12)])
+    walk = approaching_partner(12)
+    assert np.array_equal(run(0.0, walk), run(0.0, None))
+    assert not np.allclose(run(1.0, walk), run(1.0, None))
+
+
 def test_slide_mode_runs(tiny_model):
     frames = rollout(tiny_model, 3, slide=True)
     assert all(np.isfinite(f.joints).all() for f in frames)
