@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--warmup", type=int, default=24)
     ap.add_argument("--threads", type=int, default=0, help="torch threads (0 = the measured best per config)")
     ap.add_argument("--model", default=None, help="a model file instead of random weights (its config is used)")
-    ap.add_argument("--precisions", default="fp32,bf16:paper",
+    ap.add_argument("--precisions", default="fp32,bf16:paper,int8:paper",
                     help="precisions to run; 'bf16:paper' = bf16 for the paper config only")
     args = ap.parse_args(argv)
     try:

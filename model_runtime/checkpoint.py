@@ -68,7 +68,7 @@ def load_model(path: str | os.PathLike | None = None, *, config: "str | ModelCon
     load_model()                  -> the shipped default weights
     load_model("my.pt")           -> that file
     load_model(config="default")  -> random weights of that preset ("tiny", "default", "paper")
-    precision="bf16" runs the diffusion networks in bfloat16 (see ReMoGenModel.set_precision).
+    precision="bf16" / "int8" runs the diffusion networks in bfloat16 / int8 (see ReMoGenModel.set_precision).
     """
     if config is not None and path is not None:
         raise ModelFileError("pass either a model file path or config=..., not both")

@@ -99,3 +99,32 @@ def test_default_weights_or_a_clear_message():
 def test_unknown_config():
     with pytest.raises(ValueError, match="unknown model config"):
         load_model(config="huge")
+
+
+@pytest.mark.parametrize("precision", ["bf16", "int8"])
+def test_reduced_precisions_step_and_stay_close(precision):
+    """bf16 / int8 diffusion networks: a session runs, and the first segment stays near the fp32 one (the
+    VAE decoder and FWSR stay float32). int8 swaps the denoiser's linear layers for quantised ones."""
+    import numpy as np
+    from model_runtime import ReactionSession
+
+    def frames(model):
+        s = ReactionSession(model, text="walk", seed=0, guidance=1.0)
+        s.reset()
+        return np.stack([s.step().joints for _ in range(8)])
+
+    ref = frames(load_model(config="tiny"))
+    low_model = load_model(config="tiny", precision=precision)
+    low = frames(low_model)
+    assert np.isfinite(low).all() and low.shape == ref.shape
+    assert np.abs(low - ref).max() < 0.1                       # metres, over the first segment
+    if precision == "int8":
+        assert not any(isinstance(m, torch.nn.Linear) and type(m) is torch.nn.Linear
+                       for m in low_model.denoiser.modules())
+        with pytest.raises(Exception, match="already int8"):
+            low_model.set_precision("fp32")
+
+
+def test_unknown_precision_names_the_choices():
+    with pytest.raises(Exception, match="'fp32', 'bf16' or 'int8'"):
+        load_model(config="tiny", precision="fp16")
