@@ -64,6 +64,7 @@ class ReMoGenModel(nn.Module):
         self.text_encoder: TextEncoder = build_text_encoder(cfg.text)
         self.meta: dict = {}
         self.diffusion_dtype = torch.float32
+        self._int8 = False   # the denoiser's linears were swapped for quantised ones (set_precision("int8"))
 
     def set_precision(self, precision: str) -> "ReMoGenModel":
         """"fp32" (default), "bf16" or "int8" for the diffusion networks. Inference only.
@@ -81,26 +82,23 @@ class ReMoGenModel(nn.Module):
         from .errors import InputError
         if precision not in ("fp32", "bf16", "int8"):
             raise InputError(f"precision must be 'fp32', 'bf16' or 'int8', got {precision!r}")
-        if precision == "int8":
-            self.diffusion_dtype = torch.float32
-            self.mims.to(torch.float32)
-            if not getattr(self, "_int8", False):
-                try:
-                    import warnings
-                    from torch.ao.quantization import quantize_dynamic
-                except ImportError as exc:
-                    raise InputError("precision='int8' needs torch.ao.quantization, which this PyTorch lacks; "
-                                     "use 'fp32'") from exc
-                with warnings.catch_warnings():   # its deprecation notices (documented above), once per load
-                    warnings.simplefilter("ignore")
-                    self.denoiser = quantize_dynamic(self.denoiser.float(), {nn.Linear}, dtype=torch.qint8)
-                self._int8 = True
-            return self
-        if getattr(self, "_int8", False):
+        if self._int8 and precision != "int8":
             raise InputError("this model's denoiser is already int8; load it again for another precision")
         self.diffusion_dtype = torch.bfloat16 if precision == "bf16" else torch.float32
-        self.denoiser.to(self.diffusion_dtype)
         self.mims.to(self.diffusion_dtype)
+        if precision != "int8":
+            self.denoiser.to(self.diffusion_dtype)
+        elif not self._int8:
+            try:
+                import warnings
+                from torch.ao.quantization import quantize_dynamic
+            except ImportError as exc:
+                raise InputError("precision='int8' needs torch.ao.quantization, which this PyTorch lacks; "
+                                 "use 'fp32'") from exc
+            with warnings.catch_warnings():   # its deprecation notices (documented above), once per load
+                warnings.simplefilter("ignore")
+                self.denoiser = quantize_dynamic(self.denoiser.float(), {nn.Linear}, dtype=torch.qint8)
+            self._int8 = True
         return self
 
     # ------------------------------------------------------------------ conditioning

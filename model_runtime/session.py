@@ -241,11 +241,10 @@ class ReactionSession:
         if self._fwsr and f >= 1:
             # the latest H emitted frames, already canonical and normalised in this segment's frame
             recent = seg["emitted"][-self.cfg.history:].unsqueeze(0)
-            partner, present = self._partner_window(seg["rot"], seg["trans"], self.cfg.history)
-            if self._alpha["hhi"] == 0.0:
-                # alpha_HHI = 0 means "ignore the partner": FWSR's refiner reads partner frames too, so it
-                # sees none (measured: with them it turned a prior-only ego toward the partner).
-                present = torch.zeros_like(present)
+            # alpha_HHI = 0 means "ignore the partner": FWSR's refiner reads partner frames too, so it sees
+            # none (measured: with them it turned a prior-only ego toward the partner)
+            partner, present = self._partner_window(seg["rot"], seg["trans"], self.cfg.history,
+                                                    hidden=self._alpha["hhi"] == 0.0)
             z = self.model.refine(seg["z0"], recent, partner, present, f)
             feat_n = self.model.decode(seg["hist_n"], z)[0, f]
         else:
@@ -295,8 +294,12 @@ class ReactionSession:
         # on the next denoising step; blocks of modules at alpha 0 are still skipped.
         return self.model.encode_contexts(partner, present, occupancy, goal, {k: 1.0 for k in MODULE_NAMES})
 
-    def _partner_window(self, rot: torch.Tensor, trans: torch.Tensor, n: int) -> tuple[torch.Tensor, torch.Tensor]:
+    def _partner_window(self, rot: torch.Tensor, trans: torch.Tensor, n: int,
+                        hidden: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+        """The latest n partner frames in a canonical frame, and which are present (none when hidden)."""
         frames = list(self._partner)[-n:]
+        if hidden:
+            frames = [None] * len(frames)
         present = torch.tensor([p is not None for p in frames]).unsqueeze(0)
         pts = torch.zeros(1, n, NUM_JOINTS, 3)
         for i, p in enumerate(frames):

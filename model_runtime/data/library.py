@@ -24,10 +24,22 @@ LICENCES = {"cmu": "CMU Graphics Lab Motion Capture Database (commercial use all
             "bandai": "Bandai-Namco-Research-Motiondataset, CC BY-NC 4.0 (non-commercial)"}
 
 
+DERIVED = "#"   # a clip made from another is named `<source name>#<variant>` (data/turns.py)
+
+
+def source_name(name: str) -> str:
+    """The real clip a (possibly derived) clip name comes from."""
+    return name.split(DERIVED, 1)[0]
+
+
+def is_derived(name: str) -> bool:
+    return DERIVED in name
+
+
 def held_out(name: str, fraction: float = 0.1) -> bool:
-    """Deterministic split by clip name (stable across machines and runs). A derived clip named
-    `<source>#<variant>` (data/turns.py) falls on its source's side, so no source leaks across the split."""
-    h = int(hashlib.sha1(name.split("#")[0].encode()).hexdigest()[:8], 16)
+    """Deterministic split by clip name (stable across machines and runs). A derived clip falls on its
+    source's side, so no source leaks across the split."""
+    h = int(hashlib.sha1(source_name(name).encode()).hexdigest()[:8], 16)
     return (h % 1000) < fraction * 1000
 
 

@@ -47,7 +47,7 @@ import numpy as np
 import torch
 
 from ..skeleton import LEFT_HIP, RIGHT_HIP, forward_kinematics, quat_to_matrix
-from .library import ClipLibrary
+from .library import ClipLibrary, is_derived
 
 if TYPE_CHECKING:  # voxel.py is NumPy-only and imported lazily (see HSIScene.grid)
     from ..voxel import OccupancyGrid
@@ -331,7 +331,7 @@ def _partner_pools(clips: _Clips) -> tuple[list[int], list[int]]:
     """(standing clips, straight forward walks) of the whole library, partners' sources."""
     standing, walking = [], []
     for i in range(len(clips.lib)):
-        if "#" in clips.lib.names[i]:   # derived copies (turns) are not partners' sources
+        if is_derived(clips.lib.names[i]):   # turned copies are not partners' sources
             continue
         p = clips.path(i)
         if p.standing:
@@ -404,8 +404,7 @@ def _hhi_one(kind: str, ego: int, clips: _Clips, rng: np.random.Generator, stand
         return place_standing(src, frames, int(frames[-1]), target, face, scale)
     if kind == "turn_to_face":
         end = ej[-1, 0, :2].astype(np.float64)
-        face = path.facing[-3:].mean(0)
-        face = _unit(face)
+        face = _unit(path.facing[-3:].mean(0))
         side = np.array([-face[1], face[0]])
         target = end + float(rng.uniform(1.0, 2.4)) * face + float(rng.uniform(-0.15, 0.15)) * side
         return place_standing(src, frames, int(frames[-1]), target, -face, scale)
@@ -442,7 +441,8 @@ def build_hhi_pairs(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_cl
     out: list[HHIPair] = []
     for ego in clip_ids:
         rng = np.random.default_rng([seed, int(ego)])
-        rules = ["turn_to_face"] if "#turn" in lib.names[ego] else _hhi_kinds(clips.path(ego), lib.captions[ego])
+        # the only derived clips are turned copies (data/turns.py)
+        rules = ["turn_to_face"] if is_derived(lib.names[ego]) else _hhi_kinds(clips.path(ego), lib.captions[ego])
         fits = [k for k in rules if k in kinds]
         if not fits or per_clip <= 0:
             continue

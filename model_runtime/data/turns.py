@@ -11,7 +11,7 @@ as foot sliding during a turn. The copies only feed the interaction stages (`mod
 the prior never see them.
 
 Copies are named `<source name>#turn<k>` and keep the source's caption (prefixed with the turn), licence and
-held-out split (`library.held_out` reads the name before '#').
+held-out split (`library.source_name`).
 """
 from __future__ import annotations
 
@@ -19,14 +19,14 @@ import numpy as np
 import torch
 
 from ..skeleton import matrix_to_quat_np, quat_to_matrix, yaw_matrix
-from .library import ClipLibrary
+from .library import DERIVED, ClipLibrary, is_derived
+from .pairs import FPS, STANDING_RANGE
 
 TURN_SPEED = np.radians(150.0)         # rad/s: 90 degrees in 0.6 s, a brisk turn toward someone
 TURN_RANGE = (np.radians(45.0), np.pi)  # |turn angle|
 ONSET_FRAMES = (2, 4)                   # the turn starts this many frames into the copy (inclusive)
 AFTER_FRAMES = 12                       # frames kept after the turn ends (the copy is cut there)
 MIN_FRAMES = 20                         # shorter standing clips are not copied
-STANDING_RANGE = 0.5                    # m: pelvis extent of a clip that counts as standing
 
 
 def smoothstep(x: np.ndarray) -> np.ndarray:
@@ -34,7 +34,7 @@ def smoothstep(x: np.ndarray) -> np.ndarray:
     return x * x * (3.0 - 2.0 * x)
 
 
-def turn_profile(frames: int, onset: int, angle: float, fps: float = 10.0) -> np.ndarray:
+def turn_profile(frames: int, onset: int, angle: float, fps: float = FPS) -> np.ndarray:
     """(frames,) yaw added at each frame: 0 before onset, `angle` once the turn is over."""
     duration = max(2.0, abs(angle) / TURN_SPEED * fps)
     return angle * smoothstep((np.arange(frames) - onset) / duration)
@@ -73,20 +73,20 @@ def add_pivot_turns(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_cl
     for i in clip_ids:
         a, b = int(lib.offsets[i]), int(lib.offsets[i + 1])
         pel = lib.pelvis[a:b]
-        if b - a < MIN_FRAMES or "#" in lib.names[i] or np.ptp(pel[:, :2], axis=0).max() > STANDING_RANGE:
+        if b - a < MIN_FRAMES or is_derived(lib.names[i]) or np.ptp(pel[:, :2], axis=0).max() > STANDING_RANGE:
             continue
         rng = np.random.default_rng([seed, int(i), 7])
         for k in range(per_clip):
             angle = float(rng.uniform(*TURN_RANGE)) * (1.0 if rng.random() < 0.5 else -1.0)
             onset = int(rng.integers(ONSET_FRAMES[0], ONSET_FRAMES[1] + 1))
             start = int(rng.integers(0, max(1, (b - a) - MIN_FRAMES)))   # a random stretch of the clip
-            length = min(b - a - start, onset + int(np.ceil(abs(angle) / TURN_SPEED * 10)) + AFTER_FRAMES)
+            length = min(b - a - start, onset + int(np.ceil(abs(angle) / TURN_SPEED * FPS)) + AFTER_FRAMES)
             if length < MIN_FRAMES // 2:
                 continue
             yaw = turn_profile(length, onset, angle)
             rot, p = pivot_turn(lib.rotations[a + start:a + start + length], lib.pelvis[a + start:a + start + length],
                                 yaw)
-            names.append(f"{lib.names[i]}#turn{k}")
+            names.append(f"{lib.names[i]}{DERIVED}turn{k}")
             caps.append(_caption(lib.captions[i], angle))
             srcs.append(lib.sources[i])
             if errors:
