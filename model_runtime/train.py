@@ -93,7 +93,12 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         pairs_tr = build_hhi_pairs(lib, train_ids, seed=seed, kinds=HHI_TRAIN_KINDS)
         pairs_va = build_hhi_pairs(lib, val_ids, seed=seed + 1, kinds=HHI_TRAIN_KINDS)
     if stage == "hsi":
+        from .data.detours import add_arrivals
         from .data.pairs import build_hsi_scenes
+        # detour-and-stop copies of straight walks: the data has no stop at a target, no walk around anything
+        lib, arrivals = add_arrivals(lib, train_ids + val_ids, seed=seed)
+        train_ids = train_ids + [i for i in arrivals if not lib.is_held_out(i)]
+        val_ids = val_ids + [i for i in arrivals if lib.is_held_out(i)]
         scenes_tr = build_hsi_scenes(lib, train_ids, seed=seed)
         scenes_va = build_hsi_scenes(lib, val_ids, seed=seed + 1)
     tr = SegmentSampler(lib, train_ids, model.cfg, model.stats, seed=seed * 1000 + rank, pairs=pairs_tr,

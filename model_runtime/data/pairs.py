@@ -459,7 +459,10 @@ def build_hhi_pairs(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_cl
 
 
 # ----------------------------------------------------------------------------- HSI
-HSI_KINDS = ("block_turn", "beside_path", "corridor", "static")
+HSI_KINDS = ("block_turn", "beside_path", "corridor", "static", "detour")
+GOAL_LEAD = 1.5           # s: a clip still walking at its end gets its goal this far ahead (at its final speed)
+GOAL_LEAD_MAX = 2.5       # m
+STOPPED_SPEED = 0.3       # m/s: a clip slower than this at its end has stopped there
 _BOX_FACES = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
                        [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], np.int64)
 
@@ -615,6 +618,8 @@ def _hsi_boxes(kind: str, joints: np.ndarray, path: PathInfo, rng: np.random.Gen
         k = int(rng.integers(0, t))
         boxes = [_beside(joints, path, rng, k, ("wall",), side=s) for s in (-1.0, 1.0)]
         return None if any(b is None for b in boxes) else boxes
+    if kind == "detour":
+        return _detour_box(joints, path, rng)
     if kind == "static":
         centre = joints[:, 0, :2].mean(0).astype(np.float64)
         boxes = []
@@ -630,7 +635,41 @@ def _hsi_boxes(kind: str, joints: np.ndarray, path: PathInfo, rng: np.random.Gen
     raise ValueError(f"unknown HSI scene kind {kind!r}; use one of {', '.join(HSI_KINDS)}")
 
 
-def _hsi_kinds(path: PathInfo) -> list[str]:
+def _detour_box(joints: np.ndarray, path: PathInfo, rng: np.random.Generator) -> list[_Box] | None:
+    """A box on the straight line from the copy's start to where it stops, beside the detour's widest point,
+    as large as the detour leaves room for (its half width shrinks until the path clears it)."""
+    chord = path.xy[-1] - path.xy[0]
+    if np.linalg.norm(chord) < 1.0:
+        return None
+    u = _unit(chord)
+    n = np.array([-u[1], u[0]])
+    rel = path.xy - path.xy[0]
+    apex = int(np.argmax(np.abs(rel @ n)))
+    centre = path.xy[0] + (float(rel[apex] @ u) + float(rng.uniform(-0.3, 0.3))) * u + \
+        float(rng.uniform(-0.1, 0.1)) * n
+    kind = "table" if rng.random() < 0.2 else "box"
+    hu, h = float(rng.uniform(0.2, 0.45)), float(rng.uniform(0.4, 1.0) if kind == "box" else rng.uniform(0.7, 0.8))
+    for hn in np.arange(float(rng.uniform(0.3, 0.55)), 0.149, -0.05):
+        box = _Box(centre, u, hu, float(hn), h, kind)
+        if _box_clear(box, joints):
+            return [box]
+    return None
+
+
+def hsi_goal(joints: np.ndarray, path: PathInfo, name: str) -> np.ndarray:
+    """(3,) floor goal: where the clip stops, or, for a clip still walking at its end (captured walks end
+    mid-stride), GOAL_LEAD seconds further along its final heading, so a goal under the ego always means
+    "stop here" and a goal ahead "keep going" (data/detours.py makes the stops)."""
+    end = joints[-1, 0, :2].astype(np.float64)
+    stopped = is_derived(name) and ("#arrive" in name or "#detour" in name)
+    if not stopped and path.end_speed >= STOPPED_SPEED:
+        end = end + min(GOAL_LEAD_MAX, GOAL_LEAD * path.end_speed) * path.h_end
+    return np.array([end[0], end[1], 0.0], np.float32)
+
+
+def _hsi_kinds(path: PathInfo, name: str = "") -> list[str]:
+    if "#detour" in name:
+        return ["detour"]
     if path.turning:
         return ["block_turn", "beside_path", "corridor"]
     if path.travel >= MOVING_DISTANCE:
@@ -658,9 +697,9 @@ def build_hsi_scenes(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_c
     for ego in clip_ids:
         rng = np.random.default_rng([seed, int(ego), 1])
         joints, path = clips.joints(ego), clips.path(ego)
-        kinds = _hsi_kinds(path)
+        kinds = _hsi_kinds(path, lib.names[ego])
         order = kinds[:1] + [kinds[1:][i] for i in rng.permutation(len(kinds) - 1)]
-        goal = np.array([joints[-1, 0, 0], joints[-1, 0, 1], 0.0], np.float32)
+        goal = hsi_goal(joints, path, lib.names[ego])
         for n in range(max(per_clip, 0)):
             kind = order[n % len(order)]
             for _ in range(8):

@@ -1,0 +1,218 @@
+"""Synthetic arrivals and detours: the scene reaction the open data does not hold.
+
+Issue 3's box scenario asks the ego to walk around a box on the straight line to a goal and stop there. No clip
+in CMU or Bandai Namco does either: a scan of the 4 h library found no walk that ends standing (all 645
+Bandai dataset-2 walks start and end mid-stride) and no walk around an obstacle. Measured without this: the HSI
+module left the ego 20 % of frames inside the box and 3.0 m from the goal (it walked on past it). So the HSI
+stage also trains on copies of real straight walks, each
+
+1. optionally bent into a detour (`bend_path`): the heading swings away by 25-45 degrees, holds, swings back
+   across the line by twice that, holds as long, and straightens, so the path leaves its straight line and
+   rejoins it. Each frame's body turns with the heading about its own pelvis and the pelvis path is
+   re-integrated from the turned velocities; the feet slide a little while the heading changes.
+2. brought to a stop (`arrive`): slowed to rest by a time warp over its last 0.4 s of walking (played over
+   0.8 s, ease-out) at a frame where the ankles pass each other, then cross-faded over 0.5 s into a real
+   standing clip (no gesture) placed at that pelvis position and facing, which plays for 1.5-3 s.
+
+Copies are named `<source>#detour<k>` / `<source>#arrive<k>` and keep the source's caption (the goal, not the
+text, tells the module where to stop), licence and held-out split (`library.source_name`). The HSI scenes
+(`pairs.build_hsi_scenes`) put a box on the straight line beside a detour's widest point and the goal where the
+copy stands. The copies only feed the HSI stage; the VAE and the prior never see them.
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from ..skeleton import JOINT_INDEX, forward_kinematics, matrix_to_quat_np, quat_slerp, quat_to_matrix, yaw_matrix
+from .library import DERIVED, ClipLibrary, is_derived
+from .pairs import FPS, STANDING_RANGE, analyse_path, facing_xy, is_gesture
+from .turns import smoothstep
+
+WALK_SPEED = (0.7, 2.0)              # m/s mean pelvis speed of a source walk
+STRAIGHTNESS = 0.3                   # m: a source walk's pelvis stays this close to its start-end line
+DETOUR_ANGLE = (np.radians(30.0), np.radians(55.0))
+HEADING_RATE = np.radians(120.0)     # rad/s while the detour's heading changes
+DETOUR_HOLD = (6, 14)                # frames held at each side of the line (with the angles: 0.5-1.5 m out)
+WALK_FRAMES = (15, 45)              # frames of walking before the stop (a detour needs its own length on top)
+SLOW_IN, SLOW_OUT = 4, 8             # the last SLOW_IN walking frames are played over SLOW_OUT frames
+BLEND_FRAMES = 5
+COPIES = ("detour", "detour", "arrive")   # per source walk
+STAND_FRAMES = (15, 30)
+ANKLES = (JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"])
+
+
+def detour_profile(frames: int, onset: int, angle: float, hold: int) -> np.ndarray:
+    """(frames,) heading added per frame: 0 -> angle -> -angle -> 0, antisymmetric about its middle, so a walk
+    at a steady speed ends back on its original line."""
+    d = max(2.0, abs(angle) / HEADING_RATE * FPS)
+    t = np.arange(frames, dtype=np.float64)
+    t2 = onset + d + hold
+    t3 = t2 + 2 * d + hold
+    return angle * (smoothstep((t - onset) / d) - 2 * smoothstep((t - t2) / (2 * d)) + smoothstep((t - t3) / d))
+
+
+def detour_frames(angle: float, hold: int) -> int:
+    """Frames from a detour's onset until its heading is straight again."""
+    d = max(2.0, abs(angle) / HEADING_RATE * FPS)
+    return int(np.ceil(4 * d + 2 * hold))
+
+
+def bend_path(rotations: np.ndarray, pelvis: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Turn each frame's body by yaw[t] about its own pelvis and re-integrate the pelvis path from the turned
+    per-frame steps (starting where the clip starts). rotations (T, 22, 4) w-first, pelvis (T, 3)."""
+    r = yaw_matrix(torch.as_tensor(yaw, dtype=torch.float64)).numpy()
+    root = quat_to_matrix(torch.as_tensor(rotations[:, 0], dtype=torch.float64)).numpy()
+    rot = rotations.copy()
+    rot[:, 0] = matrix_to_quat_np(r @ root).astype(rotations.dtype)
+    step = np.diff(pelvis[:, :2].astype(np.float64), axis=0)
+    mid = 0.5 * (yaw[1:] + yaw[:-1])
+    c, s = np.cos(mid), np.sin(mid)
+    turned = np.stack((c * step[:, 0] - s * step[:, 1], s * step[:, 0] + c * step[:, 1]), -1)
+    pel = pelvis.copy()
+    pel[1:, :2] = (pelvis[0, :2].astype(np.float64) + np.cumsum(turned, 0)).astype(pel.dtype)
+    return rot, pel
+
+
+def _resample(rotations: np.ndarray, pelvis: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pose at fractional frame times (slerp / lerp between neighbouring frames)."""
+    lo = np.clip(np.floor(times).astype(np.int64), 0, len(pelvis) - 1)
+    hi = np.minimum(lo + 1, len(pelvis) - 1)
+    w = (times - lo)[:, None]
+    q = quat_slerp(torch.from_numpy(rotations[lo].astype(np.float64)), torch.from_numpy(rotations[hi].astype(np.float64)),
+                   torch.from_numpy(w[:, :, None])).numpy()
+    return q.astype(rotations.dtype), ((1 - w) * pelvis[lo] + w * pelvis[hi]).astype(pelvis.dtype)
+
+
+def slow_to_rest(rotations: np.ndarray, pelvis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The clip with its last SLOW_IN steps played over SLOW_OUT frames at a rate easing from 1 to 0
+    (quadratic ease-out: the rate starts at exactly 1 because SLOW_OUT = 2 SLOW_IN)."""
+    t = len(pelvis)
+    x = np.arange(1, SLOW_OUT + 1) / SLOW_OUT
+    times = (t - 1 - SLOW_IN) + SLOW_IN * (1 - (1 - x) ** 2)
+    q, p = _resample(rotations, pelvis, times)
+    keep = t - SLOW_IN
+    return np.concatenate((rotations[:keep], q)), np.concatenate((pelvis[:keep], p))
+
+
+def place_stand(rotations: np.ndarray, pelvis: np.ndarray, joints0: np.ndarray, at_xy: np.ndarray,
+                facing: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Move a standing clip rigidly (yaw + floor translation) so its first frame's pelvis is at at_xy, facing
+    `facing` (2,). joints0: (22, 3) joints of its first frame."""
+    f0 = facing_xy(joints0[None].astype(np.float64))[0]
+    a = np.arctan2(facing[1], facing[0]) - np.arctan2(f0[1], f0[0])
+    yaw = np.full(len(pelvis), a)
+    r = yaw_matrix(torch.as_tensor(yaw, dtype=torch.float64)).numpy()
+    root = quat_to_matrix(torch.as_tensor(rotations[:, 0], dtype=torch.float64)).numpy()
+    rot = rotations.copy()
+    rot[:, 0] = matrix_to_quat_np(r @ root).astype(rotations.dtype)
+    rel = pelvis[:, :2].astype(np.float64) - pelvis[0, :2]
+    pel = pelvis.copy()
+    pel[:, :2] = (at_xy + rel @ r[0, :2, :2].T).astype(pel.dtype)
+    return rot, pel
+
+
+def arrive(walk_rot: np.ndarray, walk_pel: np.ndarray, stand_rot: np.ndarray, stand_pel: np.ndarray,
+           stand_joints0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A walk slowed to rest, then cross-faded into a standing clip placed where and as the walk stopped."""
+    rot, pel = slow_to_rest(walk_rot, walk_pel)
+    j_end = forward_kinematics(quat_to_matrix(torch.from_numpy(rot[-1:].astype(np.float64))),
+                               torch.from_numpy(pel[-1:].astype(np.float64)))[0][0].numpy()
+    s_rot, s_pel = place_stand(stand_rot, stand_pel, stand_joints0, pel[-1, :2].astype(np.float64),
+                               facing_xy(j_end[None])[0])
+    w = smoothstep(np.arange(1, BLEND_FRAMES + 1) / (BLEND_FRAMES + 1))
+    b_rot = quat_slerp(torch.from_numpy(np.repeat(rot[-1:], BLEND_FRAMES, 0).astype(np.float64)),
+                       torch.from_numpy(s_rot[:BLEND_FRAMES].astype(np.float64)),
+                       torch.from_numpy(w[:, None, None])).numpy().astype(rot.dtype)
+    b_pel = ((1 - w[:, None]) * pel[-1] + w[:, None] * s_pel[:BLEND_FRAMES]).astype(pel.dtype)
+    return (np.concatenate((rot, b_rot, s_rot[BLEND_FRAMES:])),
+            np.concatenate((pel, b_pel, s_pel[BLEND_FRAMES:])))
+
+
+def straight_starts(xy: np.ndarray, length: int) -> np.ndarray:
+    """Starts of the `length`-frame stretches of a smoothed pelvis path that walk straight at a walking pace:
+    every point within STRAIGHTNESS of the stretch's chord, chord speed within WALK_SPEED."""
+    ok = []
+    for s in range(0, len(xy) - length + 1):
+        seg = xy[s:s + length]
+        line = seg[-1] - seg[0]
+        dist = float(np.linalg.norm(line))
+        if not WALK_SPEED[0] <= dist / ((length - 1) / FPS) <= WALK_SPEED[1]:
+            continue
+        n = np.array([-line[1], line[0]]) / dist
+        if np.abs((seg - seg[0]) @ n).max() < STRAIGHTNESS:
+            ok.append(s)
+    return np.asarray(ok, np.int64)
+
+
+def _all_joints(lib: ClipLibrary, ids: list[int]) -> dict[int, np.ndarray]:
+    out = {}
+    with torch.no_grad():
+        for i in ids:
+            rot, pel = lib.pose(i)
+            out[i] = forward_kinematics(rot, pel)[0].numpy()
+    return out
+
+
+def _stop_frame(joints: np.ndarray, lo: int, hi: int) -> int:
+    """Frame in [lo, hi) where the ankles are closest in the floor plane (the swing foot passes the other)."""
+    gap = np.linalg.norm(joints[lo:hi, ANKLES[0], :2] - joints[lo:hi, ANKLES[1], :2], axis=-1)
+    return lo + int(np.argmin(gap))
+
+
+def add_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[ClipLibrary, list[int]]:
+    """A new library: `lib` plus, for every forward walk of `clip_ids` with a long enough straight stretch,
+    one detour-and-stop copy and one stop copy of such a stretch (each ends in a standing clip of the same
+    split). Returns (library, indices of the copies).
+
+    Deterministic for a seed; `lib`'s own clips keep their indices."""
+    ids = [i for i in clip_ids if not is_derived(lib.names[i])]
+    joints = _all_joints(lib, ids)
+    paths = {i: analyse_path(joints[i]) for i in ids}
+    walks = [i for i in ids if paths[i].moving and paths[i].forwardness >= 0.8]
+    stands = [i for i in ids if lib.frames(i) >= STAND_FRAMES[1] + BLEND_FRAMES
+              and np.ptp(lib.pelvis[lib.offsets[i]:lib.offsets[i + 1], :2], axis=0).max() <= STANDING_RANGE
+              and not is_gesture(lib.captions[i])]
+    pools = {side: [i for i in stands if lib.is_held_out(i) == side] for side in (False, True)}
+    names, caps, srcs = list(lib.names), list(lib.captions), list(lib.sources)
+    rots, pels, off = [lib.rotations], [lib.pelvis], list(lib.offsets)
+    errors = list(lib.fit_error_mm) if lib.fit_error_mm else []
+    new: list[int] = []
+    for i in walks:
+        pool = pools[lib.is_held_out(i)] or stands
+        if not pool:
+            break
+        a, t = int(lib.offsets[i]), lib.frames(i)
+        rng = np.random.default_rng([seed, int(i), 11])
+        for k, kind in enumerate(COPIES):
+            walk = int(rng.integers(WALK_FRAMES[0], WALK_FRAMES[1] + 1))
+            if kind == "detour":
+                angle = float(rng.uniform(*DETOUR_ANGLE)) * (1.0 if rng.random() < 0.5 else -1.0)
+                hold = int(rng.integers(DETOUR_HOLD[0], DETOUR_HOLD[1] + 1))
+                onset = int(rng.integers(3, 9))
+                walk = max(walk, onset + detour_frames(angle, hold) + 6)
+            starts = straight_starts(paths[i].xy[:-1], walk + 1)   # the stop may fall up to one frame late
+            if not len(starts):
+                continue
+            start = int(starts[int(rng.integers(len(starts)))])
+            stop = _stop_frame(joints[i], start + walk - 6, start + walk + 1) + 1   # exclusive end of the walk
+            w_rot = lib.rotations[a + start:a + stop]
+            w_pel = lib.pelvis[a + start:a + stop]
+            if kind == "detour":
+                w_rot, w_pel = bend_path(w_rot, w_pel, detour_profile(len(w_pel), onset, angle, hold))
+            s = pool[int(rng.integers(len(pool)))]
+            sa, sn = int(lib.offsets[s]), int(rng.integers(STAND_FRAMES[0], STAND_FRAMES[1] + 1)) + BLEND_FRAMES
+            s0 = int(rng.integers(0, lib.frames(s) - sn + 1))
+            rot, pel = arrive(w_rot, w_pel, lib.rotations[sa + s0:sa + s0 + sn], lib.pelvis[sa + s0:sa + s0 + sn],
+                              joints[s][s0])
+            names.append(f"{lib.names[i]}{DERIVED}{kind}{k}")
+            caps.append(lib.captions[i])
+            srcs.append(lib.sources[i])
+            if errors:
+                errors.append(lib.fit_error_mm[i])
+            rots.append(rot)
+            pels.append(pel)
+            off.append(off[-1] + len(pel))
+            new.append(len(names) - 1)
+    out = ClipLibrary(names, caps, srcs, np.concatenate(rots), np.concatenate(pels), np.asarray(off, np.int64), errors)
+    return out, new
