@@ -11,7 +11,7 @@ import torch
 from torch import nn
 
 from ..skeleton import NUM_JOINTS
-from .common import RelativeBiasCrossAttention, SelfAttention, encoder_layer
+from .common import FastEval, RelativeBiasCrossAttention, SelfAttention, encoder_layer, plain_linears
 
 PARTNER_FRAME_DIM = NUM_JOINTS * 3 * 2 + 1  # positions, velocities, "present" flag
 
@@ -66,7 +66,7 @@ class SceneEncoder(nn.Module):
         return self.norm(x)
 
 
-class MetaInteractionBlock(nn.Module):
+class MetaInteractionBlock(FastEval):
     """Self-attn -> relation-aware cross-attn -> FiLM (tanh) -> FFN; returns the residual Delta."""
 
     def __init__(self, d: int, d_ctx: int, heads: int, omega: float, dropout: float, ff_mult: int = 2) -> None:
@@ -85,14 +85,35 @@ class MetaInteractionBlock(nn.Module):
             nn.init.zeros_(lin.weight)
             nn.init.zeros_(lin.bias)
 
+    def collect_weights(self) -> tuple | None:
+        sa, ffn = self.self_attn, self.ffn
+        if not plain_linears(sa.qkv, sa.out, self.film, ffn[0], ffn[2]):
+            return None
+        return (sa.heads, self.norm1.weight, self.norm1.bias, self.norm1.eps, sa.qkv.weight, sa.qkv.bias,
+                sa.out.weight, sa.out.bias, self.norm2.weight, self.norm2.bias, self.norm2.eps, self.cross,
+                self.film.weight, self.film.bias, self.norm3.weight, self.norm3.bias, self.norm3.eps,
+                ffn[0].weight, ffn[0].bias, ffn[2].weight, ffn[2].bias)
+
     def forward(self, h: torch.Tensor, ctx: torch.Tensor, ctx_mask: torch.Tensor | None = None,
                 kv: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
-        h1 = h + self.self_attn(self.norm1(h))
-        r = self.cross(self.norm2(h1), ctx, ctx_mask, kv)
-        gamma, beta = self.film(r).chunk(2, dim=-1)
+        w = self.eval_weights()
+        if w is None:
+            h1 = h + self.self_attn(self.norm1(h))
+            r = self.cross(self.norm2(h1), ctx, ctx_mask, kv)
+            gamma, beta = self.film(r).chunk(2, dim=-1)
+            h_mod = (1 + torch.tanh(gamma)) * h1 + torch.tanh(beta)
+            h_ffn = h_mod + self.ffn(self.norm3(h_mod))
+            return h_ffn - h
+        # the same maths with the weights from the cached tuple (FastEval)
+        heads, n1w, n1b, e1, qw, qb, ow, ob, n2w, n2b, e2, cross, fw, fb, n3w, n3b, e3, f1w, f1b, f2w, f2b = w
+        f = nn.functional
+        b, t, d = h.shape
+        q, k, v = f.linear(f.layer_norm(h, (d,), n1w, n1b, e1), qw, qb).view(b, t, 3, heads, -1).permute(2, 0, 3, 1, 4)
+        h1 = h + f.linear(f.scaled_dot_product_attention(q, k, v).transpose(1, 2).reshape(b, t, d), ow, ob)
+        r = cross(f.layer_norm(h1, (d,), n2w, n2b, e2), ctx, ctx_mask, kv)
+        gamma, beta = f.linear(r, fw, fb).chunk(2, dim=-1)
         h_mod = (1 + torch.tanh(gamma)) * h1 + torch.tanh(beta)
-        h_ffn = h_mod + self.ffn(self.norm3(h_mod))
-        return h_ffn - h
+        return h_mod + f.linear(f.gelu(f.linear(f.layer_norm(h_mod, (d,), n3w, n3b, e3), f1w, f1b)), f2w, f2b) - h
 
 
 class MetaInteractionModule(nn.Module):
