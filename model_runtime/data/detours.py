@@ -31,9 +31,12 @@ from .turns import smoothstep
 
 WALK_SPEED = (0.7, 2.0)              # m/s mean pelvis speed of a source walk
 STRAIGHTNESS = 0.3                   # m: a source walk's pelvis stays this close to its start-end line
-DETOUR_ANGLE = (np.radians(30.0), np.radians(55.0))
+# Steep and short: 0.5-1.3 m out, the widest point 0.8-1.6 m of walking after the swing starts, so the box beside
+# it is already inside the ego-local occupancy window (1.8 m ahead) when the swing begins (with 30-55 degrees
+# and 6-14 held frames it was often beyond it, and the module learned to head for the goal but not around boxes)
+DETOUR_ANGLE = (np.radians(35.0), np.radians(60.0))
 HEADING_RATE = np.radians(120.0)     # rad/s while the detour's heading changes
-DETOUR_HOLD = (6, 14)                # frames held at each side of the line (with the angles: 0.5-1.5 m out)
+DETOUR_HOLD = (3, 9)                 # frames held at each side of the line
 WALK_FRAMES = (15, 45)              # frames of walking before the stop (a detour needs its own length on top)
 SLOW_IN, SLOW_OUT = 4, 8             # the last SLOW_IN walking frames are played over SLOW_OUT frames
 BLEND_FRAMES = 5

@@ -36,6 +36,11 @@ def is_derived(name: str) -> bool:
     return DERIVED in name
 
 
+def derived_kind(name: str) -> str:
+    """"turn", "detour", "arrive", ... for a derived clip name (`<source>#<kind><k>`); "" for a real clip."""
+    return name.split(DERIVED, 1)[1].rstrip("0123456789") if is_derived(name) else ""
+
+
 def held_out(name: str, fraction: float = 0.1) -> bool:
     """Deterministic split by clip name (stable across machines and runs). A derived clip falls on its
     source's side, so no source leaks across the split."""

@@ -26,12 +26,18 @@ for the leader), moved rigidly (standing) or re-rooted along the path (leader), 
 scale in [0.9, 1.1] and a random timing offset in [-0.5, 0.5] s.
 
 HSI (stand-in for LINGO), `build_hsi_scenes`, procedural obstacles (boxes, walls, tables, low steps)
-and a goal taken from the ego's future path (its final position, on the floor):
+and a goal taken from the ego's own path (`hsi_goal`): where the clip stops, or, for a clip still walking at
+its end (captured walks end mid-stride), 1.5 s further along its final heading, so that a goal under the ego
+always means "stop here" and one ahead "keep going":
     block_turn     a turning clip: an obstacle on the straight-ahead continuation of the pre-turn path,
                    just beyond the turn, so the captured turn avoids it (plus maybe one beside the path).
     beside_path    a moving clip: 1-3 obstacles beside the swept volume of a stretch of the path.
     corridor       a moving clip: two walls along a stretch of the path, one on each side.
     static         an in-place clip (gestures, dance): 1-2 obstacles around the swept volume.
+    detour         a detour-and-stop copy of a straight walk (`<name>#detour<k>`, data/detours.py: like the
+                   turned copies, an exception to the rule below, since no clip walks around anything or
+                   stops at a target): a box or table on the walk's original straight line beside the
+                   detour's widest point, as wide as the detour leaves room for; the goal is where it stops.
 Every obstacle is pushed out of the ego's swept volume (all joints, plus a body margin) along one axis,
 so the real path stays free; the voxelised scene is then checked joint by joint.
 
@@ -47,7 +53,7 @@ import numpy as np
 import torch
 
 from ..skeleton import LEFT_HIP, RIGHT_HIP, forward_kinematics, quat_to_matrix
-from .library import ClipLibrary, is_derived
+from .library import ClipLibrary, derived_kind, is_derived
 
 if TYPE_CHECKING:  # voxel.py is NumPy-only and imported lazily (see HSIScene.grid)
     from ..voxel import OccupancyGrid
@@ -517,7 +523,7 @@ class HSIScene:
     ego: int
     vertices: np.ndarray        # (V, 3) float32 world
     faces: np.ndarray           # (M, 3) int64
-    goal: np.ndarray            # (3,) world goal point (the ego's final position, on the floor)
+    goal: np.ndarray            # (3,) world goal point on the floor (hsi_goal)
     kind: str                   # one of HSI_KINDS
     _grid: "OccupancyGrid | None" = field(default=None, init=False, repr=False, compare=False)
 
@@ -661,14 +667,14 @@ def hsi_goal(joints: np.ndarray, path: PathInfo, name: str) -> np.ndarray:
     mid-stride), GOAL_LEAD seconds further along its final heading, so a goal under the ego always means
     "stop here" and a goal ahead "keep going" (data/detours.py makes the stops)."""
     end = joints[-1, 0, :2].astype(np.float64)
-    stopped = is_derived(name) and ("#arrive" in name or "#detour" in name)
+    stopped = derived_kind(name) in ("arrive", "detour")
     if not stopped and path.end_speed >= STOPPED_SPEED:
         end = end + min(GOAL_LEAD_MAX, GOAL_LEAD * path.end_speed) * path.h_end
     return np.array([end[0], end[1], 0.0], np.float32)
 
 
 def _hsi_kinds(path: PathInfo, name: str = "") -> list[str]:
-    if "#detour" in name:
+    if derived_kind(name) == "detour":
         return ["detour"]
     if path.turning:
         return ["block_turn", "beside_path", "corridor"]

@@ -23,6 +23,9 @@ from ..skeleton import NUM_JOINTS, forward_kinematics
 
 INTERACTION_RANGE = 2.5   # m between the pelvises: the partner is close enough to shape the next segment
 INTERACTION_SHARE = 0.5   # share of HHI windows drawn among those in range
+# Detour scenes (data/detours.py) are the only ones whose box stands on the path to the goal, about 1 in 10
+# windows by frame count; drawn 3x as often so that walking around something is not a rare event.
+SCENE_KIND_WEIGHT = {"detour": 3.0}
 
 
 @dataclass
@@ -59,6 +62,8 @@ class SegmentSampler:
         if not self.items:
             raise ValueError(f"no clip is long enough for a {self.span}-frame segment")
         weights = np.array([lib.frames(i) - self.span for i, _ in self.items], np.float64)
+        if scenes is not None:
+            weights *= np.array([SCENE_KIND_WEIGHT.get(scenes[k].kind, 1.0) for _, k in self.items])
         self.weights = torch.from_numpy(weights / weights.sum())
         self.gen = torch.Generator().manual_seed(seed)
         self._partner_cache: dict[int, torch.Tensor] = {}
