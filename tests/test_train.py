@@ -135,3 +135,17 @@ def test_hhi_windows_favour_the_frames_where_the_partner_is_near(lib):
     # half drawn among the close windows, half uniform (which lands there `uniform` of the time)
     expected = samples.INTERACTION_SHARE + (1 - samples.INTERACTION_SHARE) * uniform
     assert abs(share - expected) < 0.1
+
+
+def test_detour_scenes_are_drawn_more_often(lib):
+    import numpy as np
+    from model_runtime.data.pairs import HSIScene
+    from model_runtime.training import samples
+    model = load_model(config="tiny")
+    empty = (np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int64))
+    scenes = [HSIScene(i, *empty, np.zeros(3, np.float32), kind) for i, kind in ((0, "detour"), (1, "beside_path"))]
+    s = SegmentSampler(lib, [0, 1], model.cfg, model.stats, seed=0, scenes=scenes)
+    w = s.weights.numpy()
+    frames = np.array([lib.frames(0), lib.frames(1)], np.float64) - s.span
+    expect = frames * np.array([samples.SCENE_KIND_WEIGHT["detour"], 1.0])
+    assert np.allclose(w, expect / expect.sum())
