@@ -6,8 +6,8 @@ import pytest
 import torch
 
 from model_runtime.data.library import ClipLibrary
-from model_runtime.data.pairs import (HHI_KINDS, HSI_KINDS, analyse_path, build_hhi_pairs, build_hsi_scenes,
-                                      clip_joints, facing_xy)
+from model_runtime.data.pairs import (GOAL_LEAD, GOAL_LEAD_MAX, HHI_KINDS, HSI_KINDS, STOPPED_SPEED, analyse_path,
+                                      build_hhi_pairs, build_hsi_scenes, clip_joints, facing_xy)
 from model_runtime.skeleton import matrix_to_quat, standing_pelvis_height, yaw_matrix
 
 TURN_AT = (0.0, -2.0)      # where the L-shaped walk turns
@@ -133,7 +133,14 @@ def test_hsi_scenes_keep_the_real_path_free(lib):
         grid = s.grid()
         assert grid is s.grid()                                # cached
         assert not grid.occupied(joints).any(), s.kind         # every joint, every frame
-        assert np.allclose(s.goal[:2], joints[-1, 0, :2]) and s.goal[2] == 0
+        # the goal: where the clip ends if it stops there, else ahead along its final heading (walks end mid-stride)
+        path = analyse_path(joints)
+        ahead = s.goal[:2] - joints[-1, 0, :2]
+        assert s.goal[2] == 0
+        if path.end_speed < STOPPED_SPEED:
+            assert np.allclose(ahead, 0.0)
+        else:
+            assert float(ahead @ path.h_end) == pytest.approx(min(GOAL_LEAD_MAX, GOAL_LEAD * path.end_speed), abs=1e-4)
 
 
 def test_turning_clip_gets_an_obstacle_on_the_straight_ahead_line(lib):
