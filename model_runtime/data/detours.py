@@ -165,8 +165,8 @@ def _stop_frame(joints: np.ndarray, lo: int, hi: int) -> int:
 
 def add_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[ClipLibrary, list[int]]:
     """A new library: `lib` plus, for every forward walk of `clip_ids` with a long enough straight stretch,
-    one detour-and-stop copy and one stop copy of such a stretch (each ends in a standing clip of the same
-    split). Returns (library, indices of the copies).
+    one copy per entry of COPIES (two detour-and-stop copies and one plain stop, each of a random straight
+    stretch; each ends in a standing clip of the same split). Returns (library, indices of the copies).
 
     Deterministic for a seed; `lib`'s own clips keep their indices."""
     ids = [i for i in clip_ids if not is_derived(lib.names[i])]
