@@ -13,10 +13,10 @@ from model_runtime.evaluate import box_scenario, partner_scenario
 pytestmark = pytest.mark.skipif(not DEFAULT_WEIGHTS.exists(), reason="no shipped default weights")
 
 # The box scenario is a known failure of the shipped weights, kept strict so that a model which passes turns CI
-# red until the mark comes off. Measured (seeds 0, 1): HSI on, 4.2 % of frames touching the box and 0.85 m from
-# the goal, against 20 % / 3.4 m prior-only (it walks through the box and on). The module now heads for the goal
-# around the box's side and slows there, but not reliably: over seeds 0-7, 5 never touch the box (seed 0: 8 %,
-# seed 5: 18 %) and they end 0.03-2.1 m from the goal; one seed of 8 (seed 2) meets both conditions. It learned that from the synthetic detour-and-stop copies of data/detours.py (before them: 20 % and
+# red until the mark comes off. Measured (seeds 0, 1): HSI on, 0 % of frames in the box, and 0.67 m from the goal
+# on average (seed 0 1.19 m, seed 1 0.15 m), against 20 % / 3.4 m prior-only (it walks through the box and on).
+# So the half that fails is the stop: over seeds 0-7 none touches the box, 5 end within 0.5 m of the goal
+# (0.15-0.38 m), the others 0.52, 0.63 and 1.19 m. It learned that from the synthetic detour-and-stop copies of data/detours.py (before them: 20 % and
 # 3.0 m); the open data has no walk-around paths and no stops at a target (MODEL_CARD.md).
 # The partner scenario passes (seeds 0, 1): facing error 26 deg, clearance 0.64 m vs prior-only 85 deg; it
 # needed the pivot-turned clips of data/turns.py (without them 103 vs 89 deg). It does not hang on float
