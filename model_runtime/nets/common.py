@@ -61,6 +61,21 @@ def plain_linears(*mods: nn.Module) -> bool:
     return all(type(m) is nn.Linear for m in mods)
 
 
+def norm_attention_weights(norm: nn.LayerNorm, attn: SelfAttention) -> tuple:
+    """The weights `norm_attention` reads: a pre-norm and the self-attention after it."""
+    return (attn.heads, norm.weight, norm.bias, norm.eps, attn.qkv.weight, attn.qkv.bias, attn.out.weight,
+            attn.out.bias)
+
+
+def norm_attention(x: torch.Tensor, w: tuple) -> torch.Tensor:
+    """attn(norm(x)) of SelfAttention in eval mode, from `norm_attention_weights` (FastEval paths)."""
+    heads, nw, nb, eps, qw, qb, ow, ob = w
+    f = nn.functional
+    b, t, d = x.shape
+    q, k, v = f.linear(f.layer_norm(x, (d,), nw, nb, eps), qw, qb).view(b, t, 3, heads, -1).permute(2, 0, 3, 1, 4)
+    return f.linear(f.scaled_dot_product_attention(q, k, v).transpose(1, 2).reshape(b, t, d), ow, ob)
+
+
 class TransformerLayer(FastEval):
     """Pre-norm transformer encoder layer (GELU FFN).
 
@@ -81,8 +96,7 @@ class TransformerLayer(FastEval):
         a = self.attn
         if not plain_linears(a.qkv, a.out, self.ff1, self.ff2):
             return None
-        return (a.heads, self.norm1.weight, self.norm1.bias, self.norm1.eps, a.qkv.weight, a.qkv.bias,
-                a.out.weight, a.out.bias, self.norm2.weight, self.norm2.bias, self.norm2.eps,
+        return (norm_attention_weights(self.norm1, a), self.norm2.weight, self.norm2.bias, self.norm2.eps,
                 self.ff1.weight, self.ff1.bias, self.ff2.weight, self.ff2.bias)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -90,12 +104,10 @@ class TransformerLayer(FastEval):
         if w is None:
             x = x + self.drop(self.attn(self.norm1(x)))
             return x + self.drop(self.ff2(nn.functional.gelu(self.ff1(self.norm2(x)))))
-        heads, n1w, n1b, e1, qw, qb, ow, ob, n2w, n2b, e2, f1w, f1b, f2w, f2b = w
+        attn, n2w, n2b, e2, f1w, f1b, f2w, f2b = w
         f = nn.functional
-        b, t, d = x.shape
-        q, k, v = f.linear(f.layer_norm(x, (d,), n1w, n1b, e1), qw, qb).view(b, t, 3, heads, -1).permute(2, 0, 3, 1, 4)
-        x = x + f.linear(f.scaled_dot_product_attention(q, k, v).transpose(1, 2).reshape(b, t, d), ow, ob)
-        return x + f.linear(f.gelu(f.linear(f.layer_norm(x, (d,), n2w, n2b, e2), f1w, f1b)), f2w, f2b)
+        x = x + norm_attention(x, attn)
+        return x + f.linear(f.gelu(f.linear(f.layer_norm(x, (x.shape[-1],), n2w, n2b, e2), f1w, f1b)), f2w, f2b)
 
 
 def encoder_layer(d: int, heads: int, ff: int, dropout: float) -> TransformerLayer:

@@ -11,7 +11,8 @@ import torch
 from torch import nn
 
 from ..skeleton import NUM_JOINTS
-from .common import FastEval, RelativeBiasCrossAttention, SelfAttention, encoder_layer, plain_linears
+from .common import (FastEval, RelativeBiasCrossAttention, SelfAttention, encoder_layer, norm_attention,
+                     norm_attention_weights, plain_linears)
 
 PARTNER_FRAME_DIM = NUM_JOINTS * 3 * 2 + 1  # positions, velocities, "present" flag
 
@@ -89,9 +90,8 @@ class MetaInteractionBlock(FastEval):
         sa, ffn = self.self_attn, self.ffn
         if not plain_linears(sa.qkv, sa.out, self.film, ffn[0], ffn[2]):
             return None
-        return (sa.heads, self.norm1.weight, self.norm1.bias, self.norm1.eps, sa.qkv.weight, sa.qkv.bias,
-                sa.out.weight, sa.out.bias, self.norm2.weight, self.norm2.bias, self.norm2.eps, self.cross,
-                self.film.weight, self.film.bias, self.norm3.weight, self.norm3.bias, self.norm3.eps,
+        return (norm_attention_weights(self.norm1, sa), self.norm2.weight, self.norm2.bias, self.norm2.eps,
+                self.cross, self.film.weight, self.film.bias, self.norm3.weight, self.norm3.bias, self.norm3.eps,
                 ffn[0].weight, ffn[0].bias, ffn[2].weight, ffn[2].bias)
 
     def forward(self, h: torch.Tensor, ctx: torch.Tensor, ctx_mask: torch.Tensor | None = None,
@@ -105,11 +105,10 @@ class MetaInteractionBlock(FastEval):
             h_ffn = h_mod + self.ffn(self.norm3(h_mod))
             return h_ffn - h
         # the same maths with the weights from the cached tuple (FastEval)
-        heads, n1w, n1b, e1, qw, qb, ow, ob, n2w, n2b, e2, cross, fw, fb, n3w, n3b, e3, f1w, f1b, f2w, f2b = w
+        attn, n2w, n2b, e2, cross, fw, fb, n3w, n3b, e3, f1w, f1b, f2w, f2b = w
         f = nn.functional
-        b, t, d = h.shape
-        q, k, v = f.linear(f.layer_norm(h, (d,), n1w, n1b, e1), qw, qb).view(b, t, 3, heads, -1).permute(2, 0, 3, 1, 4)
-        h1 = h + f.linear(f.scaled_dot_product_attention(q, k, v).transpose(1, 2).reshape(b, t, d), ow, ob)
+        d = h.shape[-1]
+        h1 = h + norm_attention(h, attn)
         r = cross(f.layer_norm(h1, (d,), n2w, n2b, e2), ctx, ctx_mask, kv)
         gamma, beta = f.linear(r, fw, fb).chunk(2, dim=-1)
         h_mod = (1 + torch.tanh(gamma)) * h1 + torch.tanh(beta)
