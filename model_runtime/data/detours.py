@@ -24,10 +24,10 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..skeleton import JOINT_INDEX, forward_kinematics, matrix_to_quat_np, quat_slerp, quat_to_matrix, yaw_matrix
+from ..skeleton import JOINT_INDEX, forward_kinematics, quat_slerp, quat_to_matrix
 from .library import DERIVED, ClipLibrary, is_derived
-from .pairs import FPS, STANDING_RANGE, analyse_path, facing_xy, is_gesture
-from .turns import smoothstep
+from .pairs import FPS, STANDING_RANGE, ClipCache, facing_xy, is_gesture
+from .turns import pivot_turn, smoothstep, turn_roots
 
 WALK_SPEED = (0.7, 2.0)              # m/s mean pelvis speed of a source walk
 STRAIGHTNESS = 0.3                   # m: a source walk's pelvis stays this close to its start-end line
@@ -64,10 +64,7 @@ def detour_frames(angle: float, hold: int) -> int:
 def bend_path(rotations: np.ndarray, pelvis: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Turn each frame's body by yaw[t] about its own pelvis and re-integrate the pelvis path from the turned
     per-frame steps (starting where the clip starts). rotations (T, 22, 4) w-first, pelvis (T, 3)."""
-    r = yaw_matrix(torch.as_tensor(yaw, dtype=torch.float64)).numpy()
-    root = quat_to_matrix(torch.as_tensor(rotations[:, 0], dtype=torch.float64)).numpy()
-    rot = rotations.copy()
-    rot[:, 0] = matrix_to_quat_np(r @ root).astype(rotations.dtype)
+    rot, _ = turn_roots(rotations, yaw)
     step = np.diff(pelvis[:, :2].astype(np.float64), axis=0)
     mid = 0.5 * (yaw[1:] + yaw[:-1])
     c, s = np.cos(mid), np.sin(mid)
@@ -104,14 +101,8 @@ def place_stand(rotations: np.ndarray, pelvis: np.ndarray, joints0: np.ndarray, 
     `facing` (2,). joints0: (22, 3) joints of its first frame."""
     f0 = facing_xy(joints0[None].astype(np.float64))[0]
     a = np.arctan2(facing[1], facing[0]) - np.arctan2(f0[1], f0[0])
-    yaw = np.full(len(pelvis), a)
-    r = yaw_matrix(torch.as_tensor(yaw, dtype=torch.float64)).numpy()
-    root = quat_to_matrix(torch.as_tensor(rotations[:, 0], dtype=torch.float64)).numpy()
-    rot = rotations.copy()
-    rot[:, 0] = matrix_to_quat_np(r @ root).astype(rotations.dtype)
-    rel = pelvis[:, :2].astype(np.float64) - pelvis[0, :2]
-    pel = pelvis.copy()
-    pel[:, :2] = (at_xy + rel @ r[0, :2, :2].T).astype(pel.dtype)
+    rot, pel = pivot_turn(rotations, pelvis, np.full(len(pelvis), a))
+    pel[:, :2] = (pel[:, :2].astype(np.float64) + (at_xy - pelvis[0, :2])).astype(pel.dtype)
     return rot, pel
 
 
@@ -148,15 +139,6 @@ def straight_starts(xy: np.ndarray, length: int) -> np.ndarray:
     return np.asarray(ok, np.int64)
 
 
-def _all_joints(lib: ClipLibrary, ids: list[int]) -> dict[int, np.ndarray]:
-    out = {}
-    with torch.no_grad():
-        for i in ids:
-            rot, pel = lib.pose(i)
-            out[i] = forward_kinematics(rot, pel)[0].numpy()
-    return out
-
-
 def _stop_frame(joints: np.ndarray, lo: int, hi: int) -> int:
     """Frame in [lo, hi) where the ankles are closest in the floor plane (the swing foot passes the other)."""
     gap = np.linalg.norm(joints[lo:hi, ANKLES[0], :2] - joints[lo:hi, ANKLES[1], :2], axis=-1)
@@ -170,9 +152,8 @@ def add_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[
 
     Deterministic for a seed; `lib`'s own clips keep their indices."""
     ids = [i for i in clip_ids if not is_derived(lib.names[i])]
-    joints = _all_joints(lib, ids)
-    paths = {i: analyse_path(joints[i]) for i in ids}
-    walks = [i for i in ids if paths[i].moving and paths[i].forwardness >= 0.8]
+    clips = ClipCache(lib)     # batched FK and path analysis, cached
+    walks = [i for i in ids if clips.path(i).moving and clips.path(i).forwardness >= 0.8]
     stands = [i for i in ids if lib.frames(i) >= STAND_FRAMES[1] + BLEND_FRAMES
               and np.ptp(lib.pelvis[lib.offsets[i]:lib.offsets[i + 1], :2], axis=0).max() <= STANDING_RANGE
               and not is_gesture(lib.captions[i])]
@@ -194,11 +175,11 @@ def add_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[
                 hold = int(rng.integers(DETOUR_HOLD[0], DETOUR_HOLD[1] + 1))
                 onset = int(rng.integers(3, 9))
                 walk = max(walk, onset + detour_frames(angle, hold) + 6)
-            starts = straight_starts(paths[i].xy[:-1], walk + 1)   # the stop may fall up to one frame late
+            starts = straight_starts(clips.path(i).xy[:-1], walk + 1)   # the stop may fall up to one frame late
             if not len(starts):
                 continue
             start = int(starts[int(rng.integers(len(starts)))])
-            stop = _stop_frame(joints[i], start + walk - 6, start + walk + 1) + 1   # exclusive end of the walk
+            stop = _stop_frame(clips.joints(i), start + walk - 6, start + walk + 1) + 1   # exclusive end of the walk
             w_rot = lib.rotations[a + start:a + stop]
             w_pel = lib.pelvis[a + start:a + stop]
             if kind == "detour":
@@ -207,7 +188,7 @@ def add_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[
             sa, sn = int(lib.offsets[s]), int(rng.integers(STAND_FRAMES[0], STAND_FRAMES[1] + 1)) + BLEND_FRAMES
             s0 = int(rng.integers(0, lib.frames(s) - sn + 1))
             rot, pel = arrive(w_rot, w_pel, lib.rotations[sa + s0:sa + s0 + sn], lib.pelvis[sa + s0:sa + s0 + sn],
-                              joints[s][s0])
+                              clips.joints(s)[s0])
             names.append(f"{lib.names[i]}{DERIVED}{kind}{k}")
             caps.append(lib.captions[i])
             srcs.append(lib.sources[i])

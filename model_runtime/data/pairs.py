@@ -288,7 +288,7 @@ class HHIPair:
     kind: str                   # one of HHI_KINDS
 
 
-class _Clips:
+class ClipCache:
     """Per-build cache of FK joints and path analysis (each clip is needed many times)."""
 
     def __init__(self, lib: ClipLibrary) -> None:
@@ -333,7 +333,7 @@ def _hhi_kinds(path: PathInfo, caption: str) -> list[str]:
     return []
 
 
-def _partner_pools(clips: _Clips) -> tuple[list[int], list[int]]:
+def _partner_pools(clips: ClipCache) -> tuple[list[int], list[int]]:
     """(standing clips, straight forward walks) of the whole library, partners' sources."""
     standing, walking = [], []
     for i in range(len(clips.lib)):
@@ -355,7 +355,7 @@ def _pick(rng: np.random.Generator, pool: list[int], ego: int) -> int | None:
     return int(others[rng.integers(len(others))])
 
 
-def _standing_source(clips: _Clips, rng: np.random.Generator, pool: list[int], ego: int
+def _standing_source(clips: ClipCache, rng: np.random.Generator, pool: list[int], ego: int
                      ) -> tuple[np.ndarray, np.ndarray]:
     """(joints (Ts,22,3), frame indices to use) of a standing partner. Without a standing clip in the
     library, the quietest frame of another clip is held still (a body from a real clip, not moving)."""
@@ -376,7 +376,7 @@ def _standing_frames(src_frames: np.ndarray, t: int, shift: int) -> np.ndarray:
     return src_frames[np.clip(np.arange(t) + shift, 0, len(src_frames) - 1)]
 
 
-def _hhi_one(kind: str, ego: int, clips: _Clips, rng: np.random.Generator, standing: list[int],
+def _hhi_one(kind: str, ego: int, clips: ClipCache, rng: np.random.Generator, standing: list[int],
              walking: list[int]) -> np.ndarray | None:
     ej, path = clips.joints(ego), clips.path(ego)
     t = len(ej)
@@ -442,7 +442,7 @@ def build_hhi_pairs(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_cl
     do not depend on which other clips are in `clip_ids`. Every pair keeps the partner at least
     MIN_CLEARANCE from the ego at every frame (placements that do not are resampled, then skipped).
     """
-    clips = _Clips(lib)
+    clips = ClipCache(lib)
     standing, walking = _partner_pools(clips)
     out: list[HHIPair] = []
     for ego in clip_ids:
@@ -698,7 +698,7 @@ def build_hsi_scenes(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_c
     placements that fail are resampled, then skipped.
     """
     from ..voxel import OccupancyGrid
-    clips = _Clips(lib)
+    clips = ClipCache(lib)
     out: list[HSIScene] = []
     for ego in clip_ids:
         rng = np.random.default_rng([seed, int(ego), 1])

@@ -40,14 +40,23 @@ def turn_profile(frames: int, onset: int, angle: float, fps: float = FPS) -> np.
     return angle * smoothstep((np.arange(frames) - onset) / duration)
 
 
-def pivot_turn(rotations: np.ndarray, pelvis: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rotate a clip's body by a per-frame yaw about the vertical through its pelvis at the first frame.
+def turn_roots(rotations: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The clip's rotations with each frame's world orientation (joint 0) turned by yaw[t] about +Z; every
+    other joint's local rotation is unchanged. Also returns the (T, 3, 3) yaw matrices.
 
-    rotations (T, 22, 4) local quaternions w-first (joint 0 is the world orientation), pelvis (T, 3)."""
+    rotations (T, 22, 4) local quaternions w-first."""
     r = yaw_matrix(torch.as_tensor(yaw, dtype=torch.float64)).numpy()                     # (T, 3, 3)
     root = quat_to_matrix(torch.as_tensor(rotations[:, 0], dtype=torch.float64)).numpy()  # (T, 3, 3)
     rot = rotations.copy()
     rot[:, 0] = matrix_to_quat_np(r @ root).astype(rotations.dtype)
+    return rot, r
+
+
+def pivot_turn(rotations: np.ndarray, pelvis: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotate a clip's body by a per-frame yaw about the vertical through its pelvis at the first frame.
+
+    rotations (T, 22, 4) local quaternions w-first (joint 0 is the world orientation), pelvis (T, 3)."""
+    rot, r = turn_roots(rotations, yaw)
     pivot = pelvis[0].astype(np.float64)
     pel = pelvis.copy()
     pel[:, :2] = (pivot[:2] + np.einsum("tij,tj->ti", r[:, :2, :2], pelvis[:, :2] - pivot[:2])).astype(pel.dtype)
