@@ -40,3 +40,23 @@ def synthetic_library(n: int = 8, frames: int = 40, seed: int = 0) -> ClipLibrar
         caps.append("a person walks" if turn == 0 else ("a person turns left" if turn > 0 else "a person turns right"))
     return ClipLibrary(names, caps, ["cmu"] * (n // 2) + ["bandai"] * (n - n // 2), np.concatenate(rots),
                        np.concatenate(pels), np.asarray(off, np.int64), [0.0] * n)
+
+
+def rigid_clip(xy: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
+    """(local quats (T,22,4), pelvis (T,3)): a rest body gliding along the floor path xy (T, 2), facing `yaw`,
+    with one arm moving (so that copies can be told from frozen poses)."""
+    t = len(xy)
+    rot = torch.eye(3).repeat(t, 22, 1, 1)
+    rot[:, 0] = yaw_matrix(torch.full((t,), yaw))
+    rot[:, 16] = yaw_matrix(torch.linspace(0, 1, t))          # some real motion: an arm moving
+    pel = np.concatenate((xy, np.full((t, 1), standing_pelvis_height())), 1).astype(np.float32)
+    return matrix_to_quat(rot).numpy(), pel
+
+
+def library_of(clips: list[tuple[str, str, str, tuple[np.ndarray, np.ndarray]]]) -> ClipLibrary:
+    """A ClipLibrary of (name, caption, source, (quats, pelvis)) clips."""
+    rot = np.concatenate([c[3][0] for c in clips])
+    pel = np.concatenate([c[3][1] for c in clips])
+    off = np.cumsum([0] + [len(c[3][1]) for c in clips]).astype(np.int64)
+    return ClipLibrary([c[0] for c in clips], [c[1] for c in clips], [c[2] for c in clips], rot, pel, off,
+                       [0.0] * len(clips))

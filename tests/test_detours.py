@@ -9,36 +9,22 @@ from model_runtime.data.detours import (SLOW_IN, SLOW_OUT, add_arrivals, bend_pa
                                         slow_to_rest)
 from model_runtime.data.library import ClipLibrary
 from model_runtime.data.pairs import analyse_path, build_hsi_scenes, clip_joints, hsi_goal, scene_collisions
-from model_runtime.skeleton import matrix_to_quat, standing_pelvis_height, yaw_matrix
+from model_runtime.skeleton import yaw_matrix
+from synthetic import library_of, rigid_clip
 
 STEP = 0.12   # m per frame: 1.2 m/s at 10 fps
 
 
-def _clip(xy: np.ndarray, yaw: float, arm: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    t = len(xy)
-    rot = torch.eye(3).repeat(t, 22, 1, 1)
-    rot[:, 0] = yaw_matrix(torch.full((t,), yaw))
-    if arm:
-        rot[:, 16] = yaw_matrix(torch.linspace(0, 1, t))      # some real motion: an arm moving
-    pel = np.concatenate((xy, np.full((t, 1), standing_pelvis_height())), 1).astype(np.float32)
-    return matrix_to_quat(rot).numpy(), pel
-
-
 def _walk_along_minus_y(frames: int) -> tuple[np.ndarray, np.ndarray]:
-    return _clip(np.outer(np.arange(frames) * STEP, [0.0, -1.0]), 0.0)   # yaw 0 faces -Y
+    return rigid_clip(np.outer(np.arange(frames) * STEP, [0.0, -1.0]), 0.0)   # yaw 0 faces -Y
 
 
 @pytest.fixture(scope="module")
 def lib():
     stand = np.tile([[4.0, 1.0]], (60, 1)) + np.random.default_rng(0).normal(0, 0.005, (60, 2))
-    clips = [("walk", "a person walks forward", _walk_along_minus_y(160)),
-             ("stand", "a person stands", _clip(stand, 1.0)),
-             ("bow", "a person bows", _clip(np.tile([[-3.0, 0.0]], (60, 1)), -1.0))]
-    rot = np.concatenate([c[2][0] for c in clips])
-    pel = np.concatenate([c[2][1] for c in clips])
-    off = np.cumsum([0] + [len(c[2][1]) for c in clips]).astype(np.int64)
-    return ClipLibrary([c[0] for c in clips], [c[1] for c in clips], ["cmu", "cmu", "bandai"], rot, pel, off,
-                       [0.0] * 3)
+    return library_of([("walk", "a person walks forward", "cmu", _walk_along_minus_y(160)),
+                       ("stand", "a person stands", "cmu", rigid_clip(stand, 1.0)),
+                       ("bow", "a person bows", "bandai", rigid_clip(np.tile([[-3.0, 0.0]], (60, 1)), -1.0))])
 
 
 def _lateral(xy: np.ndarray) -> np.ndarray:

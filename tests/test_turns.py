@@ -8,30 +8,17 @@ import torch
 from model_runtime.data.library import ClipLibrary, held_out
 from model_runtime.data.pairs import build_hhi_pairs, clip_joints, facing_xy
 from model_runtime.data.turns import TURN_SPEED, add_pivot_turns, pivot_turn, turn_profile
-from model_runtime.skeleton import matrix_to_quat, standing_pelvis_height, yaw_matrix
-
-
-def _clip(xy: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
-    t = len(xy)
-    rot = torch.eye(3).repeat(t, 22, 1, 1)
-    rot[:, 0] = yaw_matrix(torch.full((t,), yaw))
-    rot[:, 16] = yaw_matrix(torch.linspace(0, 1, t))          # some real motion: an arm moving
-    pel = np.concatenate((xy, np.full((t, 1), standing_pelvis_height())), 1).astype(np.float32)
-    return matrix_to_quat(rot).numpy(), pel
+from model_runtime.skeleton import yaw_matrix
+from synthetic import library_of, rigid_clip
 
 
 @pytest.fixture(scope="module")
 def lib():
     stand = np.tile([[2.0, 1.0]], (40, 1)) + np.random.default_rng(0).normal(0, 0.01, (40, 2))
     walk = np.outer(np.arange(40) * 0.12, [0.0, -1.0])
-    clips = [("wave", "a person waves the right hand", _clip(stand, 0.3)),
-             ("walk", "a person walks forward", _clip(walk, 0.0)),
-             ("bow", "a person bows", _clip(np.tile([[-3.0, 0.0]], (30, 1)), -1.0))]
-    rot = np.concatenate([c[2][0] for c in clips])
-    pel = np.concatenate([c[2][1] for c in clips])
-    off = np.cumsum([0] + [len(c[2][1]) for c in clips]).astype(np.int64)
-    return ClipLibrary([c[0] for c in clips], [c[1] for c in clips], ["cmu", "cmu", "bandai"], rot, pel, off,
-                       [0.0] * 3)
+    return library_of([("wave", "a person waves the right hand", "cmu", rigid_clip(stand, 0.3)),
+                       ("walk", "a person walks forward", "cmu", rigid_clip(walk, 0.0)),
+                       ("bow", "a person bows", "bandai", rigid_clip(np.tile([[-3.0, 0.0]], (30, 1)), -1.0))])
 
 
 def test_turn_profile_is_smooth_and_reaches_the_angle():
