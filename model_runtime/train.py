@@ -249,6 +249,10 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         model.meta = meta
         save_model(model, model_path)
         ema.swap()
+    if world > 1:
+        # every rank leaves together: the next stage of `all` loads the model.pt rank 0 just wrote, and a rank
+        # that tore down the process group while rank 0 was still saving was seen to abort (SIGABRT) in CI
+        dist.barrier()
     return model_path
 
 
