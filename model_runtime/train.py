@@ -16,6 +16,7 @@ DistributedDataParallel over gloo on CPU cores; each rank draws its own batches 
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import math
 import os
@@ -253,6 +254,10 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         # every rank leaves together: the next stage of `all` loads the model.pt rank 0 just wrote, and a rank
         # that tore down the process group while rank 0 was still saving was seen to abort (SIGABRT) in CI
         dist.barrier()
+        # release the DDP wrapper (its reducer holds gloo work objects) while the process group is still alive,
+        # not at interpreter exit after destroy_process_group: a late free there is a known gloo abort path
+        del ddp
+        gc.collect()
     return model_path
 
 

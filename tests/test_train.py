@@ -2,6 +2,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 import torch
@@ -63,14 +64,25 @@ def test_later_stage_without_earlier_says_so(tmp_path, lib):
         train_stage("prior", tmp_path / "empty", lib, config="tiny", steps=1, progress=False)
 
 
+def _rank_report(res: subprocess.CompletedProcess, logs: Path) -> str:
+    """On a failed DDP run: the launcher's tail and each rank's own stderr (torchrun --redirects wrote them per
+    rank), so an intermittent abort shows which rank died and why instead of a truncated interleaving."""
+    parts = [f"torchrun exit {res.returncode}:\n{res.stderr[-3000:]}"]
+    for log in sorted(logs.rglob("stderr.log")):
+        parts.append(f"--- {log.relative_to(logs)}:\n{log.read_text(errors='replace')[-4000:]}")
+    return "\n".join(parts)
+
+
 def _run_ddp(tmp_path, lib, *args: str):
     lib.save(tmp_path / "clips.npz")
     env = dict(os.environ, PYTHONPATH=str(ROOT), OMP_NUM_THREADS="1")
+    logs = tmp_path / "rank_logs"
     cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node", "2",
+           "--log-dir", str(logs), "--redirects", "3",
            "-m", "model_runtime.train", "vae", "--library", str(tmp_path / "clips.npz"), "--out",
            str(tmp_path / "ddp"), "--config", "tiny", "--batch", "4", "--no-progress", *args]
     res = subprocess.run(cmd, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=300)
-    assert res.returncode == 0, res.stderr[-2000:]
+    assert res.returncode == 0, _rank_report(res, logs)
     return load_model(tmp_path / "ddp" / "model.pt").meta["stages"]["vae"]
 
 
