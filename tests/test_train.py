@@ -161,3 +161,27 @@ def test_detour_scenes_are_drawn_more_often(lib):
     frames = np.array([lib.frames(0), lib.frames(1)], np.float64) - s.span
     expect = frames * np.array([samples.SCENE_KIND_WEIGHT["detour"], 1.0])
     assert np.allclose(w, expect / expect.sum())
+
+
+def test_hsi_windows_favour_the_frames_that_reach_the_goal(lib):
+    import numpy as np
+    from model_runtime.data.pairs import HSIScene
+    from model_runtime.training import samples
+    model = load_model(config="tiny")
+    clip = 0
+    n = lib.frames(clip)
+    a = int(lib.offsets[clip])
+    goal = np.zeros(3, np.float32)
+    goal[:2] = lib.pelvis[a + n - 1, :2]            # where the clip ends
+    empty = (np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int64))
+    s = SegmentSampler(lib, [clip], model.cfg, model.stats, seed=0, scenes=[HSIScene(clip, *empty, goal, "static")])
+    span, h = model.cfg.history + model.cfg.future, model.cfg.history
+    dist = np.linalg.norm(np.asarray(lib.pelvis[a:a + n, :2]) - goal[:2], axis=1)
+    expect = [st for st in range(n - span) if (dist[st + h:st + span] < samples.GOAL_RANGE).any()]
+    close = s._close_starts[0].tolist()
+    assert close == expect and 0 < len(close) < n - span    # some windows reach the goal, not all
+    starts = [s._window_start(0, lib.features(clip).shape[0]) for _ in range(400)]
+    share = np.mean([st in close for st in starts])
+    uniform = len(close) / (lib.features(clip).shape[0] - span + 1)
+    expected = samples.GOAL_SHARE + (1 - samples.GOAL_SHARE) * uniform
+    assert abs(share - expected) < 0.1

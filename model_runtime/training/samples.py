@@ -6,8 +6,11 @@ up to one segment because online the diffusion runs ahead on stale partner frame
 ego-local occupancy and the goal. For HHI pairs half the windows are drawn among those whose future
 brings the partner within INTERACTION_RANGE of the ego: uniform windows are mostly mid-walk, where the
 partner changes nothing, and a module trained on them learns a partner-independent bias instead of the
-reaction (measured: shuffling partners across a batch cost only 0.003 of its 0.145 loss). FWSR samples add, for a random frame f of the future, the latest H
-real frames and partner frames as the session sees them at frame f.
+reaction (measured: shuffling partners across a batch cost only 0.003 of its 0.145 loss). HSI scenes do the
+same with the goal: half the windows are drawn among those whose future brings the ego within GOAL_RANGE of its
+goal, where slowing down and standing at it happen (uniform windows are mostly "keep walking toward a far goal";
+measured: the module walked through the box test's goal at 1-1.8 m/s and kept going). FWSR samples add, for a
+random frame f of the future, the latest H real frames and partner frames as the session sees them at frame f.
 """
 from __future__ import annotations
 
@@ -23,6 +26,8 @@ from ..skeleton import NUM_JOINTS, forward_kinematics
 
 INTERACTION_RANGE = 2.5   # m between the pelvises: the partner is close enough to shape the next segment
 INTERACTION_SHARE = 0.5   # share of HHI windows drawn among those in range
+GOAL_RANGE = 1.0          # m from the pelvis to the goal (floor plane): the goal decides how the segment ends
+GOAL_SHARE = 0.5          # share of HSI windows drawn among those that reach it
 # Detour scenes (data/detours.py) are the only ones whose box stands on the path to the goal, about 1 in 10
 # windows by frame count; drawn 3x as often so that walking around something is not a rare event.
 SCENE_KIND_WEIGHT = {"detour": 3.0}
@@ -67,15 +72,33 @@ class SegmentSampler:
         self.weights = torch.from_numpy(weights / weights.sum())
         self.gen = torch.Generator().manual_seed(seed)
         self._partner_cache: dict[int, torch.Tensor] = {}
-        self._close_starts = [self._interaction_starts(i, k) for i, k in self.items] if pairs is not None else None
+        # window starts where the cue matters (partner in range / goal reached), and the share drawn among them
+        self._close_starts: list[torch.Tensor] | None = None
+        self._close_share = 0.0
+        if pairs is not None:
+            self._close_starts = [self._interaction_starts(i, k) for i, k in self.items]
+            self._close_share = INTERACTION_SHARE
+        elif scenes is not None:
+            self._close_starts = [self._goal_starts(i, k) for i, k in self.items]
+            self._close_share = GOAL_SHARE
 
     def _interaction_starts(self, clip: int, k: int) -> torch.Tensor:
         """Window starts whose future frames bring the partner's pelvis within INTERACTION_RANGE."""
+        n = self.lib.frames(clip)
+        partner = np.asarray(self.pairs[k].partner[:n, 0, :2], np.float64)
+        return self._starts_within(clip, partner, INTERACTION_RANGE)
+
+    def _goal_starts(self, clip: int, k: int) -> torch.Tensor:
+        """Window starts whose future frames bring the ego's pelvis within GOAL_RANGE of the scene's goal."""
+        return self._starts_within(clip, np.asarray(self.scenes[k].goal[:2], np.float64), GOAL_RANGE)
+
+    def _starts_within(self, clip: int, target: np.ndarray, radius: float) -> torch.Tensor:
+        """Window starts with a future frame whose ego pelvis (floor plane) is within `radius` of `target`
+        ((2,) or per-frame (n, 2) world xy)."""
         a = int(self.lib.offsets[clip])
         n = self.lib.frames(clip)
         ego = np.asarray(self.lib.pelvis[a:a + n, :2], np.float64)
-        partner = np.asarray(self.pairs[k].partner[:n, 0, :2], np.float64)
-        close = np.linalg.norm(ego - partner, axis=1) < INTERACTION_RANGE
+        close = np.linalg.norm(ego - target, axis=-1) < radius
         starts = n - 1 - self.span + 1  # windows over the n - 1 feature rows
         h = self.cfg.history
         ok = [s for s in range(starts) if close[s + h:s + self.span].any()]
@@ -83,7 +106,7 @@ class SegmentSampler:
 
     def _window_start(self, p: int, rows: int) -> int:
         if self._close_starts is not None and len(self._close_starts[p]) and \
-                float(torch.rand((), generator=self.gen)) < INTERACTION_SHARE:
+                float(torch.rand((), generator=self.gen)) < self._close_share:
             c = self._close_starts[p]
             return int(c[int(torch.randint(0, len(c), (1,), generator=self.gen))])
         return int(torch.randint(0, rows - self.span + 1, (1,), generator=self.gen))
