@@ -17,7 +17,8 @@ prints one JSON object:
         min_clearance_m         smallest ego-joint to partner-joint distance in that scenario
         collision_percent       a box on the straight path to a goal: % of frames with an ego joint below
                                 1.5 m inside an occupied voxel
-        goal_distance_m         how far the ego ends from that goal
+        goal_distance_m         how far the ego ends from that goal (does it stop there)
+        goal_closest_m          how close its pelvis comes to the goal at any frame (does it get there)
 Plots (PNG, matplotlib Agg): training curves from runs/train/*.log.jsonl when present, and a stick-figure
 strip (top and side views) of the generated reaction in the partner scenario.
 """
@@ -265,13 +266,16 @@ def box_scenario(model, frames: int, alpha: dict, seeds: Sequence[int], guidance
     from .bench import box_scene
     grid = box_scene()
     goal = (0.0, -3.0, 0.0)
-    hits, dist = [], []
+    hits, dist, closest = [], [], []
     for seed in seeds:
         ego = rollout(model, frames, text=BOX_TEXT, seed=seed, alpha=alpha, goal=goal, scene=grid,
                       guidance=guidance)
         hits.append(collision_frames(ego, grid))
-        dist.append(float(np.linalg.norm(ego[-1, 0, :2] - np.asarray(goal[:2]))))
-    return {"collision_percent": float(100.0 * np.concatenate(hits).mean()), "goal_distance_m": float(np.mean(dist))}
+        to_goal = np.linalg.norm(ego[:, 0, :2] - np.asarray(goal[:2]), axis=-1)
+        dist.append(float(to_goal[-1]))
+        closest.append(float(to_goal.min()))
+    return {"collision_percent": float(100.0 * np.concatenate(hits).mean()), "goal_distance_m": float(np.mean(dist)),
+            "goal_closest_m": float(np.mean(closest))}
 
 
 # ----------------------------------------------------------------------------- plots
@@ -435,7 +439,7 @@ def evaluate(model, lib, *, clips: int | None = None, windows: int | None = 512,
         if rollouts > 0 else []
     roll = evaluate_rollouts(model, lib, roll_ids, rollout_frames, guidance=guidance) if roll_ids else {}
     inter: dict[str, dict[str, float]] = {"facing_error_deg": {}, "min_clearance_m": {},
-                                           "collision_percent": {}, "goal_distance_m": {}}
+                                           "collision_percent": {}, "goal_distance_m": {}, "goal_closest_m": {}}
     strip = None
     for name, alpha in (("alpha1", ALPHA_ON), ("alpha0", ALPHA_OFF)):
         p, runs = partner_scenario(model, scenario_frames, alpha, seeds, yaws, guidance)

@@ -114,7 +114,7 @@ def test_evaluate_main_smoke(tmp_path, capsys):
               res["peak_jerk_m_s3"]["rollout"], res["peak_jerk_m_s3"]["ground_truth"]):
         assert isinstance(v, float) and v >= 0
     inter = res["interaction"]
-    for key in ("facing_error_deg", "min_clearance_m", "collision_percent", "goal_distance_m"):
+    for key in ("facing_error_deg", "min_clearance_m", "collision_percent", "goal_distance_m", "goal_closest_m"):
         assert set(inter[key]) == {"alpha1", "alpha0"}
         assert all(isinstance(x, float) for x in inter[key].values())
     assert 0 <= inter["facing_error_deg"]["alpha1"] <= 180
