@@ -17,9 +17,9 @@ pytestmark = pytest.mark.skipif(not DEFAULT_WEIGHTS.exists(), reason="no shipped
 # 20 % in the box prior-only (it walks through the box and on). Over seeds 0-11 none touches the box and all pass
 # within 0.05-0.27 m of the goal. What it does not do yet is stop there: half the rollouts arrive at 0.9-1.8 m/s
 # (frames 38-49) and drift on, ending 0.67 m from the goal on average over seeds 0-1 (seed 0 1.19 m, seed 1
-# 0.15 m; seeds 0-11 0.49 m), so the stricter "still within 0.5 m at the end" test is a strict expected failure. It learned the
-# detour from the synthetic detour-and-stop copies of data/detours.py (before them: 20 % and 3.0 m); the open
-# data has no walk-around paths and no stops at a target (MODEL_CARD.md).
+# 0.15 m; seeds 0-11 0.49 m), so the stricter "still within 0.5 m at the end" test is a strict expected failure.
+# It learned the detour from the synthetic detour-and-stop copies of data/detours.py (before them: 20 % and
+# 3.0 m); the open data has no walk-around paths and no stops at a target (MODEL_CARD.md).
 # The partner scenario passes (seeds 0, 1): facing error 26 deg, clearance 0.64 m vs prior-only 85 deg; it
 # needed the pivot-turned clips of data/turns.py (without them 103 vs 89 deg). It does not hang on float
 # rounding: with every weight scaled by 1 + 1e-3 * N(0, 1) (4 draws) it measured 25.7-26.1 deg, 0.64-0.65 m.

@@ -125,6 +125,15 @@ def test_ema_warms_up_so_short_stages_do_not_ship_their_initialisation():
     assert ema.current_decay() == 0.999
 
 
+def _assert_drawn_share(s: SegmentSampler, rows: int, close: list[int], share: float) -> None:
+    """`share` of the windows of item 0 drawn among `close`, the rest uniform (landing there len(close)/all)."""
+    import numpy as np
+    starts = [s._window_start(0, rows) for _ in range(400)]
+    drawn = np.mean([st in close for st in starts])
+    uniform = len(close) / (rows - s.span + 1)
+    assert abs(drawn - (share + (1 - share) * uniform)) < 0.1
+
+
 def test_hhi_windows_favour_the_frames_where_the_partner_is_near(lib):
     import numpy as np
     from model_runtime.data.pairs import HHIPair
@@ -141,12 +150,7 @@ def test_hhi_windows_favour_the_frames_where_the_partner_is_near(lib):
     span, h = model.cfg.history + model.cfg.future, model.cfg.history
     close = s._close_starts[0].tolist()
     assert close and all(st + span > near for st in close) and all(st + h <= n for st in close)
-    starts = [s._window_start(0, lib.features(clip).shape[0]) for _ in range(400)]
-    share = np.mean([st in close for st in starts])
-    uniform = len(close) / (lib.features(clip).shape[0] - span + 1)
-    # half drawn among the close windows, half uniform (which lands there `uniform` of the time)
-    expected = samples.INTERACTION_SHARE + (1 - samples.INTERACTION_SHARE) * uniform
-    assert abs(share - expected) < 0.1
+    _assert_drawn_share(s, lib.features(clip).shape[0], close, samples.INTERACTION_SHARE)
 
 
 def test_detour_scenes_are_drawn_more_often(lib):
@@ -180,8 +184,4 @@ def test_hsi_windows_favour_the_frames_that_reach_the_goal(lib):
     expect = [st for st in range(n - span) if (dist[st + h:st + span] < samples.GOAL_RANGE).any()]
     close = s._close_starts[0].tolist()
     assert close == expect and 0 < len(close) < n - span    # some windows reach the goal, not all
-    starts = [s._window_start(0, lib.features(clip).shape[0]) for _ in range(400)]
-    share = np.mean([st in close for st in starts])
-    uniform = len(close) / (lib.features(clip).shape[0] - span + 1)
-    expected = samples.GOAL_SHARE + (1 - samples.GOAL_SHARE) * uniform
-    assert abs(share - expected) < 0.1
+    _assert_drawn_share(s, lib.features(clip).shape[0], close, samples.GOAL_SHARE)
