@@ -8,23 +8,41 @@ Public API:
     s.reset(root_position=(0, 0, 0), yaw=0.0)
     f = s.step(partner=joints_22x3_or_None, goal=xyz_or_None)
 
-This package never imports bpy.
+Importing this package does not import PyTorch: the skeleton description (JOINT_NAMES, PARENTS,
+rest_joints_np), the bone maps, the NumPy quaternion maths and the error types work without it, so a
+host application can show and check rigs before PyTorch is installed. The model, the session and the
+motion readers import PyTorch when first used. This package never imports bpy.
 """
 from __future__ import annotations
 
-from .checkpoint import load_model, save_model
+from importlib import import_module
+
 from .config import ModelConfig
-from .errors import InputError, ModelFileError, RemogenError
-from .session import EgoFrame, ReactionSession
+from .data.bone_maps import BoneMapGuess, guess_bone_map, normalise_name, validate_bone_map
+from .errors import MAX_COORD, InputError, ModelFileError, RemogenError
+from .joints import JOINT_NAMES, NUM_JOINTS, PARENTS, rest_joints_np, standing_pelvis_height
+from .quat import continuous_quaternions, matrix_to_quat_np, qconj, qmul, qslerp, rigid_rotation
+
+# name -> module for the parts that need PyTorch (or are heavy), imported on first use
+_LAZY = {
+    "load_model": ".checkpoint", "save_model": ".checkpoint",
+    "ReactionSession": ".session", "EgoFrame": ".session",
+    "OccupancyGrid": ".voxel",
+    "Motion": ".data.motion", "load_motion": ".data.motion",
+}
 
 __all__ = ["load_model", "save_model", "ReactionSession", "EgoFrame", "OccupancyGrid", "ModelConfig",
-           "RemogenError", "InputError", "ModelFileError"]
+           "RemogenError", "InputError", "ModelFileError", "MAX_COORD", "Motion", "load_motion",
+           "JOINT_NAMES", "NUM_JOINTS", "PARENTS", "rest_joints_np", "standing_pelvis_height",
+           "BoneMapGuess", "guess_bone_map", "normalise_name", "validate_bone_map",
+           "qmul", "qconj", "qslerp", "matrix_to_quat_np", "rigid_rotation", "continuous_quaternions"]
 __version__ = "0.1.0"
 
 
 def __getattr__(name: str):
-    # voxel.py is NumPy-only and optional for most uses; import it when asked for.
-    if name == "OccupancyGrid":
-        from .voxel import OccupancyGrid
-        return OccupancyGrid
-    raise AttributeError(name)
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'model_runtime' has no attribute {name!r}")
+    value = getattr(import_module(module, __name__), name)
+    globals()[name] = value
+    return value

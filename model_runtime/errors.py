@@ -11,3 +11,7 @@ class InputError(RemogenError):
 
 class ModelFileError(RemogenError):
     """A model file is missing, truncated, foreign or does not match this runtime."""
+
+
+# Coordinates beyond this many metres are a broken transform or unit, never a real scene.
+MAX_COORD = 1e5

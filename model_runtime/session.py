@@ -23,12 +23,13 @@ from typing import Any, Sequence
 import numpy as np
 import torch
 
-from .errors import InputError
+from .errors import MAX_COORD, InputError
 from .features import (ROOT_T, ROT6D, canonical_frame, feature_joints, features_from_pose, to_canonical,
                        to_world, world_points_to_canonical)
 from .model import MODULE_NAMES, Contexts, DiffusionJob, ReMoGenModel
-from .skeleton import (JOINT_NAMES, NUM_JOINTS, forward_kinematics_np, matrix_to_quat_np, quat_to_matrix,
-                       rot6d_to_matrix_np, standing_pelvis_height, yaw_matrix)
+from .quat import matrix_to_quat_np
+from .skeleton import (JOINT_NAMES, NUM_JOINTS, forward_kinematics_np, quat_to_matrix, rot6d_to_matrix_np,
+                       standing_pelvis_height, yaw_matrix)
 
 
 @dataclass
@@ -61,7 +62,6 @@ def _as_transform(rot: torch.Tensor, trans: torch.Tensor) -> np.ndarray:
     return m
 
 
-MAX_COORD = 1e5  # metres; anything larger is a broken transform, not a scene
 
 
 def _check_partner(partner: Any) -> np.ndarray | None:

@@ -1,8 +1,7 @@
 """The 22-joint SMPL-X body skeleton, forward kinematics and rotation maths (all torch, batched).
 
-Numbers come from ``shared/reference/smplx_body22.json`` (NEUTRAL SMPL-X, betas = 0, rest pose),
-converted to Blender's Z-up world with x' = x, y' = -z, z' = y. In that frame the rest body faces -Y
-and its left side is at +X. Only derived skeleton numbers are stored here, never SMPL-X model data.
+The body's names, parents and rest positions live in ``joints.py`` (no torch); NumPy quaternion
+maths in ``quat.py``.
 
 Conventions used everywhere in the package:
 - quaternions are (w, x, y, z);
@@ -14,35 +13,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-JOINT_NAMES: tuple[str, ...] = (
-    "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2",
-    "left_ankle", "right_ankle", "spine3", "left_foot", "right_foot", "neck", "left_collar",
-    "right_collar", "head", "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
-    "left_wrist", "right_wrist",
-)
-NUM_JOINTS = 22
-PARENTS: tuple[int, ...] = (-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19)
-JOINT_INDEX = {name: i for i, name in enumerate(JOINT_NAMES)}
-
-# Rest joint positions, Z-up metres (reference file's `rest_zup`). The pelvis is not at the origin.
-REST_JOINTS_ZUP: tuple[tuple[float, float, float], ...] = (
-    (0.003123, -0.012037, -0.351407), (0.061313, 0.013965, -0.444171),
-    (-0.060144, 0.009214, -0.455315), (0.000361, 0.015581, -0.241517),
-    (0.116008, 0.023361, -0.822924), (-0.104354, 0.026038, -0.817696),
-    (0.009808, 0.021521, -0.109664), (0.072555, 0.055237, -1.225984),
-    (-0.088937, 0.046230, -1.228423), (-0.001522, -0.006926, -0.057428),
-    (0.119812, -0.062980, -1.283981), (-0.127750, -0.072819, -1.286752),
-    (-0.013687, 0.024690, 0.107739), (0.044842, 0.000295, 0.027515),
-    (-0.049217, 0.006474, 0.026910), (0.011097, 0.003952, 0.268190),
-    (0.164081, 0.015756, 0.085243), (-0.151795, 0.019143, 0.080435),
-    (0.418204, 0.058214, 0.013093), (-0.422944, 0.045610, 0.043942),
-    (0.670191, 0.060687, 0.036314), (-0.672212, 0.060935, 0.039410),
-)
-# The foot joints sit above the sole; this lifts a standing rest body so its soles touch z = 0.
-SOLE_BELOW_FOOT_JOINT = 0.02
-LEFT_HIP, RIGHT_HIP = JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]
-FOOT_JOINTS = (JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"],
-               JOINT_INDEX["left_foot"], JOINT_INDEX["right_foot"])
+from .joints import (FOOT_JOINTS, JOINT_INDEX, JOINT_NAMES, LEFT_HIP, NUM_JOINTS, PARENTS,  # noqa: F401
+                     REST_JOINTS_ZUP, RIGHT_HIP, SOLE_BELOW_FOOT_JOINT, standing_pelvis_height)
 
 
 def rest_joints(dtype: torch.dtype = torch.float32) -> torch.Tensor:
@@ -59,12 +31,6 @@ def rest_offsets(dtype: torch.dtype = torch.float32) -> torch.Tensor:
         if p >= 0:
             off[i] = j[i] - j[p]
     return off
-
-
-def standing_pelvis_height() -> float:
-    """Pelvis height above the floor for the rest body standing upright."""
-    j = torch.tensor(REST_JOINTS_ZUP)
-    return float(j[0, 2] - j[list(FOOT_JOINTS), 2].min()) + SOLE_BELOW_FOOT_JOINT
 
 
 _OFFSETS = rest_offsets()
@@ -223,20 +189,3 @@ def forward_kinematics_np(local_rot: np.ndarray, pelvis: np.ndarray) -> np.ndarr
         glob[idx] = gp @ local_rot[idx]
         pos[idx] = pos[par] + (gp @ _OFFSETS_NP[idx][..., None])[..., 0]
     return pos
-
-
-def matrix_to_quat_np(m: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) -> (..., 4) w-first, w >= 0 (same branch choice as matrix_to_quat)."""
-    m00, m11, m22 = m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]
-    r21, r12, r02, r20, r10, r01 = m[..., 2, 1], m[..., 1, 2], m[..., 0, 2], m[..., 2, 0], m[..., 1, 0], m[..., 0, 1]
-    # the four standard candidates (each scaled by 4|component|), stacked; keep the best-conditioned one
-    cand = np.stack((
-        np.stack((1 + m00 + m11 + m22, r21 - r12, r02 - r20, r10 - r01), -1),
-        np.stack((r21 - r12, 1 + m00 - m11 - m22, r01 + r10, r02 + r20), -1),
-        np.stack((r02 - r20, r01 + r10, 1 - m00 + m11 - m22, r12 + r21), -1),
-        np.stack((r10 - r01, r02 + r20, r12 + r21, 1 - m00 - m11 + m22), -1),
-    ), -2)
-    diag = np.stack((cand[..., 0, 0], cand[..., 1, 1], cand[..., 2, 2], cand[..., 3, 3]), -1)
-    q = np.take_along_axis(cand, diag.argmax(-1)[..., None, None], -2)[..., 0, :]
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    return np.where(q[..., :1] < 0, -q, q)

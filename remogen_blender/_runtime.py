@@ -69,24 +69,30 @@ def forget_torch_check() -> None:
     _torch_state["checked"] = False
 
 
-def runtime(name: str = "") -> ModuleType:
-    """Import model_runtime (or one of its sub-modules); raises UserError when torch is missing."""
+def api() -> ModuleType:
+    """The runtime's public package without PyTorch: joint names, parents, bone maps, quaternion maths.
+
+    Importing the package imports no torch; its model parts (load_model, ReactionSession, load_motion,
+    OccupancyGrid) need `runtime()`, which checks for PyTorch first.
+    """
+    return importlib.import_module(RUNTIME_PACKAGE)
+
+
+def runtime() -> ModuleType:
+    """The runtime's public package, once PyTorch is known to import; raises UserError when it is missing."""
     err = torch_error()
     if err:
         raise UserError(err)
     try:
-        return importlib.import_module(RUNTIME_PACKAGE + ("." + name if name else ""))
+        import torch  # noqa: F401  (a broken install fails here, with a message, not later in a step)
+        return api()
     except ImportError as exc:
         raise UserError(f"PyTorch is not usable ({exc}); reinstall it from the add-on preferences") from None
 
 
 def remogen_errors() -> tuple[type[BaseException], ...]:
     """The exception types that carry a one-line user message."""
-    try:
-        errors = runtime("errors")
-    except UserError:
-        return (UserError,)
-    return (UserError, errors.RemogenError)
+    return (UserError, api().RemogenError)
 
 
 # ---------------------------------------------------------------------------- model cache

@@ -16,7 +16,7 @@ import bpy
 import numpy as np
 
 from . import action as action_mod
-from ._runtime import UserError, runtime
+from ._runtime import UserError, api
 from .frame import FrameDriver, scene_fps
 
 MAX_FRAMES = 100_000
@@ -61,10 +61,9 @@ def bake(scene: bpy.types.Scene, frame_start: int | None = None, frame_end: int 
             if progress is not None:
                 progress(k + 1, n_model)
         frames = np.arange(f0, f1 + 1, dtype=np.float64)
-        sk = runtime("skeleton")
         poses = driver.poses_at((frames - f0) / fps)
         locs, rots = driver.writer.pose_channels(poses.pelvis, poses.local_rotations)
-        rots = _continuous(rots)
+        rots = api().continuous_quaternions(rots)
         if not (np.isfinite(locs).all() and np.isfinite(rots).all()):
             raise UserError("The model produced NaN poses; check the model file and the inputs")
         ok = True
@@ -74,22 +73,10 @@ def bake(scene: bpy.types.Scene, frame_start: int | None = None, frame_end: int 
             _pose_restore(ego, saved_pose)
     st = scene.remogen
     act, replaced = action_mod.write_pose_keys(
-        ego, name or f"ReMoGen_{ego.name}_seed{st.seed}", frames, list(sk.JOINT_NAMES), locs, rots, root="pelvis")
+        ego, name or f"ReMoGen_{ego.name}_seed{st.seed}", frames, list(api().JOINT_NAMES), locs, rots, root="pelvis")
     _pose_restore(ego, saved_pose)   # the new action drives the pose from here on
     scene.frame_set(saved_frame[0], subframe=saved_frame[1])
     return BakeResult(act, len(frames), n_model, time.perf_counter() - t_start, replaced)
-
-
-def _continuous(q: np.ndarray) -> np.ndarray:
-    """Flip signs so each bone's quaternion never jumps to its antipode between keys (T, B, 4).
-
-    q and -q are the same rotation, but keys are interpolated per component: a sign jump between two
-    keys would swing the bone through a wrong pose at sub-frames (motion blur, retiming).
-    """
-    dots = np.sum(q[1:] * q[:-1], axis=-1)
-    flips = np.concatenate((np.ones((1,) + q.shape[1:-1]), np.cumprod(np.where(dots < 0.0, -1.0, 1.0), axis=0)))
-    out = q * flips[..., None]
-    return out * np.where(out[:1, :, :1] < 0.0, -1.0, 1.0)   # start in the w >= 0 hemisphere
 
 
 def _pose_snapshot(ob: bpy.types.Object) -> tuple[np.ndarray, np.ndarray]:

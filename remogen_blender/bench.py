@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> None:
 
         # voxelisation: first extraction includes the lazy evaluation of the modifiers, as for a user
         dg = bpy.context.evaluated_depsgraph_get()
-        og = runtime("voxel").OccupancyGrid
+        og = runtime().OccupancyGrid
         t0 = time.perf_counter()
         v, f = world_triangles(props, dg)
         t1 = time.perf_counter()

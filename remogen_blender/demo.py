@@ -26,7 +26,7 @@ CREDIT = ("CMU Graphics Lab Motion Capture Database, trial 05_01 (walk). The dat
 def make_clip(bvh: str, out: Path = CLIP) -> Path:
     """Retarget a CMU BVH to the SMPL-X body at 10 fps and store just the pose channels (a few kB)."""
     from ._runtime import runtime
-    motion = runtime("data.motion").load_motion(bvh, fps=120.0, caption="walk")
+    motion = runtime().load_motion(bvh, fps=120.0, caption="walk")
     out.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(out, local_rotations=motion.local_rotations.astype(np.float32),
                         pelvis=motion.root[:, :3, 3].astype(np.float32), fps=np.float32(motion.fps),
@@ -44,6 +44,7 @@ def build_scene(context, fps: int = 24):
     """The demo scene in the current (empty) file; returns (scene, number of frames)."""
     import bpy
     from . import action, rig
+    from ._runtime import api
     clip = np.load(CLIP)
     rots, pelvis, clip_fps = clip["local_rotations"], clip["pelvis"], float(clip["fps"])
     pelvis = pelvis - np.array([pelvis[0, 0], 0.0, 0.0], dtype=np.float32)    # walk along x = 0
@@ -57,9 +58,8 @@ def build_scene(context, fps: int = 24):
     writer = rig.EgoWriter(partner)
     loc, rot = writer.pose_channels(pelvis, rots)
     frames = 1.0 + np.arange(len(rots)) / clip_fps * fps
-    from .bake import _continuous
-    action.write_pose_keys(partner, "CMU_05_01_walk", frames, list(rig.runtime("skeleton").JOINT_NAMES),
-                           loc, _continuous(rot), root="pelvis")
+    action.write_pose_keys(partner, "CMU_05_01_walk", frames, list(api().JOINT_NAMES),
+                           loc, api().continuous_quaternions(rot), root="pelvis")
 
     end_y = float(pelvis[-1, 1])                 # the walk heads for -Y; the ego waits beyond its end
     ego = rig.create_ego(context, name="Ego", location=(0.0, end_y - 1.1, 0.0), yaw=math.pi)
@@ -138,7 +138,7 @@ def render_strip(scene, frames: list[int], path: Path, size: int = 240) -> Path:
 def run(out_dir: Path, model_path: str | None, strip_frames: int = 6, size: int = 240) -> int:
     import bpy
     from . import register, unregister
-    from ._runtime import get_model, remogen_errors, runtime
+    from ._runtime import api, get_model, remogen_errors, runtime
     from .bake import bake
 
     register()
@@ -148,7 +148,7 @@ def run(out_dir: Path, model_path: str | None, strip_frames: int = 6, size: int 
         try:
             model = get_model(path=model_path or "", threads=1)
             note = model_path or "shipped weights"
-        except runtime("errors").ModelFileError as exc:
+        except api().ModelFileError as exc:
             if model_path:
                 raise
             print(f"remogen demo: {exc}\nremogen demo: using an UNTRAINED default-size model instead; "

@@ -16,14 +16,14 @@ import bpy
 import numpy as np
 
 from . import rig
-from ._quat import qslerp
-from ._runtime import UserError, get_model, runtime, torch_error
+from ._runtime import UserError, api, get_model, runtime, torch_error
+
+_RT = api()   # the runtime's public package; these parts of it need no PyTorch
 from .scene import SceneCache
 
 MODEL_DT = 0.1          # seconds per model frame of the shipped models; a FrameDriver uses its model.fps
 MAX_CATCH_UP = 1.0      # live: a forward jump longer than this continues from the current pose instead
 # Blender clamps inf to float32 max, which passes a finiteness check and overflows later: bound positions.
-MAX_COORD = 1.0e5
 _EPS = 1e-6
 
 
@@ -49,7 +49,7 @@ def interpolate(f0: Any, f1: Any, a: float) -> Pose:
     if f1 is None or a <= _EPS:
         return Pose(np.asarray(f0.root[:3, 3], np.float64), np.asarray(f0.local_rotations, np.float64))
     p = (1.0 - a) * np.asarray(f0.root[:3, 3], np.float64) + a * np.asarray(f1.root[:3, 3], np.float64)
-    q = qslerp(np.asarray(f0.local_rotations, np.float64), np.asarray(f1.local_rotations, np.float64), a)
+    q = _RT.qslerp(np.asarray(f0.local_rotations, np.float64), np.asarray(f1.local_rotations, np.float64), a)
     return Pose(p, q)
 
 
@@ -173,7 +173,7 @@ class FrameDriver:
         pel = np.stack([f.root[:3, 3] for f in self.frames]).astype(np.float64)
         rot = np.stack([f.local_rotations for f in self.frames]).astype(np.float64)
         p = (1.0 - a)[:, None] * pel[lo] + a[:, None] * pel[hi]
-        q = qslerp(rot[lo], rot[hi], a[:, None, None])
+        q = _RT.qslerp(rot[lo], rot[hi], a[:, None, None])
         return Pose(p, q)
 
     def update(self, scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None,
@@ -216,8 +216,8 @@ def _alpha(st: Any) -> dict[str, float]:
 
 
 def _check_position(p: np.ndarray, what: str) -> None:
-    if not np.isfinite(p).all() or np.abs(p).max() > MAX_COORD:
-        raise UserError(f"{what} has a NaN, infinite or far-off position (beyond {MAX_COORD:g} m); "
+    if not np.isfinite(p).all() or np.abs(p).max() > _RT.MAX_COORD:
+        raise UserError(f"{what} has a NaN, infinite or far-off position (beyond {_RT.MAX_COORD:g} m); "
                         "fix its transform or animation")
 
 
@@ -226,7 +226,7 @@ def _check_finite_transform(ob: bpy.types.Object, what: str) -> None:
         m = np.array(ob.matrix_world, dtype=np.float64)
     except ReferenceError:
         raise UserError(f"{what} was deleted") from None
-    if not np.isfinite(m).all() or np.abs(m[:3, 3]).max() > MAX_COORD:
+    if not np.isfinite(m).all() or np.abs(m[:3, 3]).max() > _RT.MAX_COORD:
         raise UserError(f"{what} '{ob.name}' has a NaN or infinite transform; reset its location, rotation "
                         "and scale")
     if abs(np.linalg.det(m[:3, :3])) < 1e-12:

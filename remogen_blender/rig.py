@@ -10,8 +10,9 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ._quat import matrix3_to_quat, qconj, qmul, rigid_rotation
-from ._runtime import UserError, runtime
+from ._runtime import UserError, api
+
+_RT = api()   # the runtime's public package; these parts of it need no PyTorch
 
 EGO_MARK = "remogen_ego"   # custom property set on armatures made by Create Ego
 
@@ -25,8 +26,7 @@ def bone_map_dict(settings: Any) -> dict[str, str]:
 def fill_bone_map(settings: Any, partner: bpy.types.Object, quiet: bool = False) -> list[str]:
     """Guess the partner's bone map and store it in `settings`; returns the SMPL-X joints left unmapped."""
     try:
-        bm = runtime("data.bone_maps")
-        sk = runtime("skeleton")
+        bm = sk = _RT
     except UserError:
         if quiet:
             return []
@@ -48,8 +48,7 @@ class PartnerReader:
     def __init__(self, ob: bpy.types.Object, mapping: dict[str, str]) -> None:
         if ob is None or ob.type != 'ARMATURE':
             raise UserError("Pick a partner armature in the ReMoGen panel")
-        bm = runtime("data.bone_maps")
-        sk = runtime("skeleton")
+        bm = sk = _RT
         names = [pb.name for pb in ob.pose.bones]
         bm.validate_bone_map(mapping, names, rig=f"Partner '{ob.name}'")
         by_norm = {bm.normalise_name(n): i for i, n in enumerate(names)}
@@ -122,8 +121,8 @@ _RADIUS = {
 
 def ego_rest_heads() -> tuple[list[str], list[int], np.ndarray]:
     """(joint names, parents, (22, 3) rest heads with the pelvis above the origin and soles at z = 0)."""
-    sk = runtime("skeleton")
-    heads = sk.rest_joints().numpy().astype(np.float64)
+    sk = _RT
+    heads = sk.rest_joints_np()
     heads[:, 2] += sk.standing_pelvis_height()
     return list(sk.JOINT_NAMES), list(sk.PARENTS), heads
 
@@ -244,7 +243,7 @@ def _smplx_body(folder: str, heads: np.ndarray
     except ImportError:
         raise UserError("The 'smplx' package is not installed; install it (pip install smplx) or clear the "
                         "SMPL-X model folder in the preferences to use the proxy body") from None
-    sk = runtime("skeleton")
+    sk = _RT
     try:
         model = smplx.create(folder, model_type="smplx", gender="neutral", use_pca=False)
         out = model(return_verts=True)
@@ -292,7 +291,7 @@ class EgoWriter:
     def __init__(self, ob: bpy.types.Object) -> None:
         if ob is None or ob.type != 'ARMATURE':
             raise UserError("No ego armature: press 'Create Ego' in the ReMoGen panel")
-        sk = runtime("skeleton")
+        sk = _RT
         bones = ob.pose.bones
         order = {pb.name: i for i, pb in enumerate(bones)}
         missing = [n for n in sk.JOINT_NAMES if n not in order]
@@ -304,8 +303,8 @@ class EgoWriter:
         self._n = len(bones)
         self._idx = np.array([order[n] for n in sk.JOINT_NAMES], dtype=np.intp)
         rest = [ob.data.bones[n].matrix_local for n in sk.JOINT_NAMES]
-        self._q_rest = np.array([matrix3_to_quat(np.array(m)[:3, :3]) for m in rest])
-        self._q_rest_inv = qconj(self._q_rest)
+        self._q_rest = _RT.matrix_to_quat_np(np.array([np.array(m)[:3, :3] for m in rest]))
+        self._q_rest_inv = _RT.qconj(self._q_rest)
         self._r0_t = np.array(rest[0])[:3, :3].T
         self._h0 = np.array(rest[0])[:3, 3]
         self._non_quat = [pb.name for pb in bones if pb.rotation_mode != 'QUATERNION']
@@ -329,8 +328,8 @@ class EgoWriter:
         inv, q_obj_inv = self._object_inverse()
         q = np.array(local_rotations, dtype=np.float64)
         # Global orientation in the armature's space: W^-1 G.
-        q[..., 0, :] = qmul(q_obj_inv, q[..., 0, :])
-        rot = qmul(qmul(self._q_rest_inv, q), self._q_rest)
+        q[..., 0, :] = _RT.qmul(q_obj_inv, q[..., 0, :])
+        rot = _RT.qmul(_RT.qmul(self._q_rest_inv, q), self._q_rest)
         p_arm = np.asarray(pelvis_world, dtype=np.float64) @ inv[:3, :3].T + inv[:3, 3]
         loc = np.zeros(q.shape[:-1] + (3,))
         loc[..., 0, :] = (p_arm - self._h0) @ self._r0_t.T
@@ -345,7 +344,7 @@ class EgoWriter:
         key = mw.tobytes()
         if key != self._inv_key:
             self._inv = np.linalg.inv(mw)
-            self._q_obj_inv = qconj(matrix3_to_quat(rigid_rotation(mw)))
+            self._q_obj_inv = _RT.qconj(_RT.matrix_to_quat_np(_RT.rigid_rotation(mw)))
             self._inv_key = key
         return self._inv, self._q_obj_inv
 
@@ -383,7 +382,7 @@ class EgoWriter:
         """(floor point under the rest pelvis, yaw) of the ego object in the world: where a session starts."""
         mw = np.array(self._ob.matrix_world, dtype=np.float64)
         p = mw[:3, :3] @ self._h0 + mw[:3, 3]
-        r = rigid_rotation(mw)
+        r = _RT.rigid_rotation(mw)
         # yaw 0 faces -Y; the object's -Y axis projected on the floor gives its facing
         fwd = -r[:, 1]
         yaw = float(np.arctan2(fwd[0], -fwd[1])) if np.hypot(fwd[0], fwd[1]) > 1e-6 else 0.0

@@ -107,7 +107,7 @@ class SceneCache:
             import time
             t0 = time.perf_counter()
             v, f = world_triangles(collection, depsgraph)
-            og = runtime("voxel").OccupancyGrid
+            og = runtime().OccupancyGrid
             self._grid = og.from_triangles(v, f, voxel_size=VOXEL_SIZE)
             self.build_seconds = time.perf_counter() - t0
             self.builds += 1

@@ -1,4 +1,14 @@
-"""Motion data: readers (BVH, Acclaim ASF/AMC, AMASS .npz), retargeting to SMPL-X, captions, the clip library."""
-from .motion import Motion, load_motion
+"""Motion data: readers (BVH, Acclaim ASF/AMC, AMASS .npz), retargeting to SMPL-X, captions, the clip library.
+
+The readers need PyTorch; `bone_maps` does not, so this package imports its torch parts only when asked.
+"""
+from __future__ import annotations
 
 __all__ = ["Motion", "load_motion"]
+
+
+def __getattr__(name: str):
+    if name in __all__:
+        from . import motion
+        return getattr(motion, name)
+    raise AttributeError(name)

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Iterable
 
 from ..errors import InputError
-from ..skeleton import JOINT_NAMES
+from ..joints import JOINT_NAMES
 
 
 def _mirror(left: dict[str, list[str]], to_right) -> dict[str, list[str]]:

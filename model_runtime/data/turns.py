@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..skeleton import matrix_to_quat_np, quat_to_matrix, yaw_matrix
+from ..quat import matrix_to_quat_np
+from ..skeleton import quat_to_matrix, yaw_matrix
 from .library import DERIVED, ClipLibrary, is_derived
 from .pairs import FPS, STANDING_RANGE
 

@@ -171,7 +171,7 @@ def test_baked_action_replays_the_live_motion(fresh):
 
 
 def test_continuous_quaternions():
-    from remogen_blender.bake import _continuous
+    from model_runtime import continuous_quaternions as _continuous
     rng = np.random.default_rng(0)
     q = rng.normal(size=(50, 3, 4))
     q /= np.linalg.norm(q, axis=-1, keepdims=True)

@@ -76,7 +76,7 @@ def test_partner_reader_lerp_and_end(fresh):
     import scenes
     from remogen_blender import rig
     ob = scenes.make_armature("P")
-    mapping = {j: j for j in rig.runtime("skeleton").JOINT_NAMES}
+    mapping = {j: j for j in rig.api().JOINT_NAMES}
     mapping["spine2"] = "lerp:spine1:spine3:0.25"
     mapping["head"] = "end:neck"
     got = rig.PartnerReader(ob, mapping).read(fresh.evaluated_depsgraph_get())

@@ -37,7 +37,7 @@ def _draw(panel_cls, context) -> list:
 
 def test_register_does_not_import_torch():
     code = ("import sys, os; import bpy; sys.path.insert(0, sys.argv[1]); import remogen_blender as r; "
-            "r.register(); bad = 'torch' in sys.modules or 'model_runtime' in sys.modules; r.unregister(); "
+            "r.register(); bad = 'torch' in sys.modules; r.unregister(); "
             "print('TORCH_IMPORTED' if bad else 'CLEAN', flush=True); os._exit(0)")
     out = subprocess.run([sys.executable, "-c", code, str(ROOT)], capture_output=True, text=True, timeout=120)
     assert "CLEAN" in out.stdout, out.stdout + out.stderr
@@ -53,9 +53,9 @@ def test_without_torch_panel_and_operators_say_so(fresh, monkeypatch):
         assert _runtime.torch_error().startswith("PyTorch is not installed:")
         labels = [kw.get("text") for name, a, kw in _draw(REMOGEN_PT_main, fresh) if name == "label"]
         assert "PyTorch is not installed" in labels
+        # the ego rig needs only the runtime's torch-free surface; generating motion needs PyTorch
+        assert bpy.ops.remogen.create_ego() == {'FINISHED'}
         with pytest.raises(RuntimeError, match="PyTorch is not installed: press 'Install PyTorch'"):
-            bpy.ops.remogen.create_ego()
-        with pytest.raises(RuntimeError, match="PyTorch is not installed"):
             bpy.ops.remogen.bake()
     finally:
         monkeypatch.undo()
