@@ -1,0 +1,121 @@
+"""Behaviour metrics: NumPy functions of (T, 22, 3) world joints (Z up, metres, 10 fps model frames).
+
+Each metric is defined here once; the suite, the scenario tests and the real-clip references call these.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from ..joints import JOINT_INDEX, LEFT_HIP, RIGHT_HIP, SOLE_BELOW_FOOT_JOINT
+
+FPS = 10.0
+SEAM_PERIOD = 8                 # model frames per segment: frame k * 8 (k >= 1) starts a new segment
+TOES = (JOINT_INDEX["left_foot"], JOINT_INDEX["right_foot"])   # SMPL-X "foot" joints sit at the toe base
+PLANTED_HEIGHT = 0.02           # m: a toe whose sole is this close to the floor counts as planted
+REACH_RADIUS = 0.5              # m: a goal counts as reached once the pelvis is this close (horizontally)
+SETTLE_S = 2.0                  # s: "does it stop": distance to the goal this long after arrival
+
+
+def hip_facing(joints: np.ndarray) -> np.ndarray:
+    """(..., 22, 3) -> (..., 2) unit horizontal facing: +Z x (right hip - left hip). The rest body faces -Y."""
+    j = np.asarray(joints, np.float64)
+    across = j[..., RIGHT_HIP, :2] - j[..., LEFT_HIP, :2]
+    f = np.stack((-across[..., 1], across[..., 0]), -1)
+    return f / np.maximum(np.linalg.norm(f, axis=-1, keepdims=True), 1e-9)
+
+
+def facing_error_deg(ego: np.ndarray, target_xy: np.ndarray) -> float | np.ndarray:
+    """Angle (0-180 deg) between the ego's hip facing and the horizontal direction from its pelvis to target."""
+    e = np.asarray(ego, np.float64)
+    to = np.asarray(target_xy, np.float64)[..., :2] - e[..., 0, :2]
+    f = hip_facing(e)
+    cross = f[..., 0] * to[..., 1] - f[..., 1] * to[..., 0]
+    ang = np.degrees(np.abs(np.arctan2(cross, (f * to).sum(-1))))
+    return float(ang) if np.ndim(ang) == 0 else ang
+
+
+def min_joint_clearance(ego: np.ndarray, partner: np.ndarray) -> float:
+    """Smallest distance (m) between any ego joint and any partner joint at the same frame."""
+    a, b = np.asarray(ego, np.float64), np.asarray(partner, np.float64)
+    d = np.linalg.norm(a[:, :, None, :] - b[:, None, :, :], axis=-1)
+    return float(d.min())
+
+
+def goal_arrival(ego: np.ndarray, goal: Sequence[float], limit_frames: int,
+                 radius: float = REACH_RADIUS, settle_s: float = SETTLE_S) -> tuple[bool, float, float]:
+    """(reached, closest distance, distance settle_s after arrival) for the pelvis against a floor goal.
+
+    Reached: within `radius` (horizontal) at some frame < limit_frames. The settle distance is NaN when not
+    reached or when the episode ends before arrival + settle_s.
+    """
+    d = np.linalg.norm(np.asarray(ego, np.float64)[:, 0, :2] - np.asarray(goal, np.float64)[:2], axis=-1)
+    inside = np.flatnonzero(d[:limit_frames] < radius)
+    if inside.size == 0:
+        return False, float(d.min()), float("nan")
+    after = inside[0] + int(round(settle_s * FPS))
+    return True, float(d.min()), float(d[after]) if after < len(d) else float("nan")
+
+
+def frames_inside_boxes(joints: np.ndarray, boxes: Sequence) -> np.ndarray:
+    """(T,) bool: any joint strictly inside any axis-aligned box (objects with .lo and .hi (3,) corners)."""
+    j = np.asarray(joints, np.float64)
+    hit = np.zeros(j.shape[0], bool)
+    for b in boxes:
+        lo, hi = np.asarray(b.lo, np.float64), np.asarray(b.hi, np.float64)
+        hit |= ((j > lo) & (j < hi)).all(-1).any(-1)
+    return hit
+
+
+def joint_steps(joints: np.ndarray) -> np.ndarray:
+    """(T-1,) mean over joints of the displacement from frame t-1 to frame t (m)."""
+    j = np.asarray(joints, np.float64)
+    return np.linalg.norm(np.diff(j, axis=0), axis=-1).mean(-1)
+
+
+def seam_ratio(joints: np.ndarray, period: int = SEAM_PERIOD, offset: int = 0) -> float:
+    """Mean joint step into a seam frame (t = offset + k * period, k >= 1) over the mean step into other frames.
+
+    1.0 means seams are invisible; a pop at every segment boundary gives a large ratio. Seams are the frames
+    where a new segment starts; the step into frame t is joints[t] - joints[t - 1].
+    """
+    steps = joint_steps(joints)                     # steps[t - 1] is the step into frame t
+    t = np.arange(1, len(steps) + 1)
+    seam = ((t - offset) % period == 0) & (t > offset)
+    if not seam.any() or seam.all():
+        return float("nan")
+    other = steps[~seam].mean()
+    return float(steps[seam].mean() / max(other, 1e-9))
+
+
+def planted_toe_speed(joints: np.ndarray, floor: float = 0.0, height: float = PLANTED_HEIGHT) -> np.ndarray:
+    """Horizontal toe speeds (m/s) over every frame step where that toe's sole is below `height` at both ends.
+
+    Pooled over both toes; concatenate several sequences' outputs and take the mean.
+    """
+    j = np.asarray(joints, np.float64)[:, list(TOES), :]
+    down = (j[..., 2] - SOLE_BELOW_FOOT_JOINT - floor) < height
+    both = down[1:] & down[:-1]
+    speed = np.linalg.norm(np.diff(j[..., :2], axis=0), axis=-1) * FPS
+    return speed[both]
+
+
+def heading_deg(joints: np.ndarray) -> np.ndarray:
+    """(T,) unwrapped hip heading in degrees (counter-clockwise about +Z)."""
+    f = hip_facing(joints)
+    return np.degrees(np.unwrap(np.arctan2(f[:, 1], f[:, 0])))
+
+
+def net_yaw_deg(joints: np.ndarray, per_seconds: float = 20.0) -> float:
+    """Net heading change from first to last frame, scaled to `per_seconds` of motion (signed degrees)."""
+    h = heading_deg(joints)
+    duration = (len(h) - 1) / FPS
+    return float((h[-1] - h[0]) * per_seconds / max(duration, 1e-9))
+
+
+def standing_drift_m(joints: np.ndarray, per_seconds: float = 60.0) -> float:
+    """Horizontal pelvis distance from the first to the last frame, scaled to `per_seconds` (m)."""
+    p = np.asarray(joints, np.float64)[:, 0, :2]
+    duration = (len(p) - 1) / FPS
+    return float(np.linalg.norm(p[-1] - p[0]) * per_seconds / max(duration, 1e-9))

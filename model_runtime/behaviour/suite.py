@@ -1,0 +1,160 @@
+"""Run the behaviour suite: roll out every episode through a ReactionSession and aggregate the metrics."""
+from __future__ import annotations
+
+import math
+import time
+from typing import Callable, Iterable
+
+import numpy as np
+
+from ..joints import JOINT_INDEX, SOLE_BELOW_FOOT_JOINT
+from . import metrics as M
+from .scenarios import FAMILIES, GOAL_LIMIT_FRAMES, Episode, box_triangles, draw_episodes, walk_clip
+
+ALPHAS = (0.0, 1.0)
+AIRBORNE_HEIGHT = 0.05     # m: both soles above this counts as airborne
+WRISTS = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
+ANKLES = (JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"])
+
+
+def scene_grid(ep: Episode):
+    """The episode's obstacles as an OccupancyGrid (None without obstacles)."""
+    if not ep.boxes:
+        return None
+    from ..voxel import OccupancyGrid
+    v, f = box_triangles(ep.boxes)
+    return OccupancyGrid.from_triangles(v, f, voxel_size=0.05)
+
+
+def roll_out(model, ep: Episode, alpha: float, *, guidance: float = 5.0, **session_options) -> np.ndarray:
+    """(frames, 22, 3) world joints of the ego in one episode, both interaction alphas set to `alpha`."""
+    from ..session import ReactionSession
+    s = ReactionSession(model, text=ep.text, seed=ep.seed, alpha={"hhi": alpha, "hsi": alpha},
+                        guidance=guidance, fwsr=True, scene=scene_grid(ep), **session_options)
+    s.reset(root_position=(0.0, 0.0, 0.0), yaw=0.0)
+    out = np.empty((ep.frames, 22, 3), np.float32)
+    for i in range(ep.frames):
+        out[i] = s.step(partner=None if ep.partner is None else ep.partner[i], goal=ep.goal).joints
+    return out
+
+
+def text_measures(ego: np.ndarray) -> dict:
+    """What a prompt should change: height range, airborne share, kick height, speed, direction, arm motion."""
+    j = np.asarray(ego, np.float64)
+    soles = j[:, list(M.TOES), 2] - SOLE_BELOW_FOOT_JOINT
+    pelvis = j[:, 0]
+    facing0 = M.hip_facing(j[0])
+    disp = pelvis[-1, :2] - pelvis[0, :2]
+    wrist_v = np.linalg.norm(np.diff(j[:, list(WRISTS)], axis=0), axis=-1) * M.FPS
+    lateral = j[:, list(WRISTS), :2] - pelvis[:, None, :2]
+    return {"pelvis_range_m": float(np.ptp(pelvis[:, 2])),
+            "airborne_percent": float(100.0 * (soles.min(-1) > AIRBORNE_HEIGHT).mean()),
+            "max_ankle_height_m": float(j[:, list(ANKLES), 2].max()),
+            "speed_mps": float(np.linalg.norm(np.diff(pelvis[:, :2], axis=0), axis=-1).mean() * M.FPS),
+            "forward_m": float(disp @ facing0),
+            "wrist_sd_m": float(lateral.std(0).mean()),
+            "wrist_speed_mps": float(wrist_v.mean())}
+
+
+def episode_metrics(ep: Episode, ego: np.ndarray) -> dict:
+    """Every metric that applies to this episode's family."""
+    out = {"seam_ratio": M.seam_ratio(ego), "toe_speeds": M.planted_toe_speed(ego),
+           "seam_steps": _seam_split(ego)}
+    if ep.partner is not None:
+        out["min_clearance_m"] = M.min_joint_clearance(ego, ep.partner)
+    if ep.family == "approach":
+        out["facing_error_deg"] = float(M.facing_error_deg(ego[-1], ep.partner[-1, 0]))
+    if ep.goal is not None:
+        reached, closest, settle = M.goal_arrival(ego, ep.goal, GOAL_LIMIT_FRAMES)
+        out.update(reached=reached, closest_m=closest, settle_m=settle)
+    if ep.boxes:
+        out["inside_frames"] = M.frames_inside_boxes(ego, ep.boxes)
+    if ep.family == "walk_forward":
+        out["net_yaw_deg_per_20s"] = M.net_yaw_deg(ego, 20.0)
+    if ep.family == "stand":
+        out["drift_m_per_min"] = M.standing_drift_m(ego, 60.0)
+    if ep.family == "text":
+        out.update(text_measures(ego))
+    return out
+
+
+def _seam_split(ego: np.ndarray) -> tuple[float, int, float, int]:
+    """(sum of seam steps, count, sum of other steps, count): pooled into a family's seam ratio."""
+    steps = M.joint_steps(ego)
+    t = np.arange(1, len(steps) + 1)
+    seam = t % M.SEAM_PERIOD == 0
+    return float(steps[seam].sum()), int(seam.sum()), float(steps[~seam].sum()), int((~seam).sum())
+
+
+def _mean(xs: Iterable[float]) -> float:
+    a = np.asarray([x for x in xs if x is not None and math.isfinite(x)], np.float64)
+    return float(a.mean()) if a.size else float("nan")
+
+
+def summarise(family: str, results: list[dict]) -> dict:
+    """Family-level numbers (the ones README and the model card report) from per-episode metrics."""
+    s = {"episodes": len(results)}
+    seam, ns, other, no = (sum(r["seam_steps"][k] for r in results) for k in range(4))
+    s["seam_ratio"] = float((seam / max(ns, 1)) / max(other / max(no, 1), 1e-9))
+    toes = np.concatenate([r["toe_speeds"] for r in results]) if results else np.zeros(0)
+    s["planted_toe_cm_s"] = float(toes.mean() * 100.0) if toes.size else float("nan")
+    if "min_clearance_m" in results[0]:
+        c = np.array([r["min_clearance_m"] for r in results])
+        s.update(min_clearance_mean_m=float(c.mean()), min_clearance_min_m=float(c.min()),
+                 percent_under_10cm=float(100.0 * (c < 0.10).mean()),
+                 percent_under_20cm=float(100.0 * (c < 0.20).mean()))
+    if family == "approach":
+        f = np.array([r["facing_error_deg"] for r in results])
+        s.update(facing_error_mean_deg=float(f.mean()), percent_within_45deg=float(100.0 * (f <= 45.0).mean()))
+    if "reached" in results[0]:
+        s.update(reach_percent=float(100.0 * np.mean([r["reached"] for r in results])),
+                 closest_mean_m=_mean(r["closest_m"] for r in results),
+                 settle_mean_m=_mean(r["settle_m"] for r in results))
+    if "inside_frames" in results[0]:
+        s["inside_obstacle_percent"] = float(100.0 * np.concatenate([r["inside_frames"] for r in results]).mean())
+    if family == "walk_forward":
+        y = np.abs([r["net_yaw_deg_per_20s"] for r in results])
+        s.update(abs_net_yaw_mean_deg=float(y.mean()), percent_within_20deg=float(100.0 * (y <= 20.0).mean()))
+    if family == "stand":
+        s["drift_mean_m_per_min"] = _mean(r["drift_m_per_min"] for r in results)
+    if family == "text":
+        keys = [k for k in results[0] if k.endswith(("_m", "_percent", "_mps")) and k not in ("closest_m",)]
+        prompts: dict[str, list[dict]] = {}
+        for r in results:
+            prompts.setdefault(r["prompt"], []).append(r)
+        s["prompts"] = {p: {k: _mean(r[k] for r in rs) for k in keys} for p, rs in prompts.items()}
+    return s
+
+
+def real_reference() -> dict:
+    """The metrics that apply to real motion, on the shipped real walk (seams at the same 8-frame period)."""
+    joints, _ = walk_clip()
+    return {"walk_clip": {"seam_ratio": M.seam_ratio(joints),
+                          "planted_toe_cm_s": float(M.planted_toe_speed(joints).mean() * 100.0),
+                          "net_yaw_deg_per_20s": M.net_yaw_deg(joints, 20.0)}}
+
+
+def run_suite(model, split: str, *, families: Iterable[str] = FAMILIES, episodes: int | None = None,
+              alphas: Iterable[float] = ALPHAS, guidance: float = 5.0,
+              progress: Callable[[str], None] | None = None, keep_tracks: int = 12, **session_options) -> dict:
+    """Every family at every alpha: {"families": {family: {"alpha=A": summary}}, "tracks": ..., "reference"}."""
+    report: dict = {"split": split, "families": {}, "reference": real_reference()}
+    tracks: dict = {}
+    for family in families:
+        eps = draw_episodes(family, split) if episodes is None else draw_episodes(family, split, episodes)
+        for alpha in alphas:
+            t0, results = time.perf_counter(), []
+            for k, ep in enumerate(eps):
+                ego = roll_out(model, ep, alpha, guidance=guidance, **session_options)
+                r = episode_metrics(ep, ego)
+                r["prompt"] = ep.text
+                results.append(r)
+                if k < keep_tracks:
+                    tracks.setdefault(family, {}).setdefault(alpha, []).append((ep, ego))
+            summary = summarise(family, results)
+            summary["seconds"] = round(time.perf_counter() - t0, 1)
+            report["families"].setdefault(family, {})[f"alpha={alpha:g}"] = summary
+            if progress is not None:
+                progress(f"{family} alpha={alpha:g}: {len(eps)} episodes in {summary['seconds']} s")
+    report["tracks"] = tracks
+    return report
