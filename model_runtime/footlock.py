@@ -1,0 +1,159 @@
+"""Planted feet: per-foot contact from the generated motion, and two-bone leg IK that holds a planted foot still.
+
+The model's decoded frames slide their feet a little (a latent decoder has no notion of a fixed point on
+the floor). This is output cleanup only: the session feeds the model its own raw frames as history, so
+the model stays on the motion it was trained on, and applies the lock to what it hands out.
+
+A foot is in contact when its toe's sole is near the floor and the toe moves slowly (with hysteresis).
+At touch-down the toe's position is stored; while in contact the leg is solved so that, with the foot
+turned as the model generated it (the heel may roll up about the toe), the toe stays on that point. After lift-off
+the correction fades out over a few frames instead of snapping. When the pelvis has moved out of the
+leg's reach the contact is released early.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .joints import JOINT_INDEX, PARENTS, SOLE_BELOW_FOOT_JOINT, rest_offsets_np
+
+FPS = 10.0
+LEGS = {"left": tuple(JOINT_INDEX[f"left_{n}"] for n in ("hip", "knee", "ankle", "foot")),
+        "right": tuple(JOINT_INDEX[f"right_{n}"] for n in ("hip", "knee", "ankle", "foot"))}
+_OFFSETS = rest_offsets_np()
+
+
+@dataclass(frozen=True)
+class FootLockConfig:
+    touch_height: float = 0.03      # m: the toe's sole below this starts a contact ...
+    touch_speed: float = 1.0        # m/s: ... unless the toe sweeps past faster than this (a low swing)
+    lift_height: float = 0.05       # m: a contact ends when the generated toe rises above this ...
+    lift_speed: float = 1.5         # m/s: ... or sweeps faster than this
+    fade_frames: int = 2            # frames to blend the correction out after lift-off
+    reach: float = 0.999            # fraction of the leg's length the IK may stretch to
+    max_miss: float = 0.04          # m: a planted toe further than this out of the leg's reach is let go
+
+
+def _rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The smallest rotation taking direction u to direction v (3x3)."""
+    u = u / max(np.linalg.norm(u), 1e-12)
+    v = v / max(np.linalg.norm(v), 1e-12)
+    axis = np.cross(u, v)
+    s, c = np.linalg.norm(axis), float(np.clip(u @ v, -1.0, 1.0))
+    if s < 1e-9:
+        if c > 0:
+            return np.eye(3)
+        perp = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
+        return _axis_angle(perp / np.linalg.norm(perp), np.pi)
+    return _axis_angle(axis / s, np.arctan2(s, c))
+
+
+def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+
+
+def global_rotations(local_rot: np.ndarray) -> np.ndarray:
+    """(22, 3, 3) local -> world rotations."""
+    glob = np.empty_like(local_rot)
+    glob[0] = local_rot[0]
+    for i in range(1, len(PARENTS)):
+        glob[i] = glob[PARENTS[i]] @ local_rot[i]
+    return glob
+
+
+def solve_leg(glob: np.ndarray, joints: np.ndarray, leg: tuple[int, int, int, int], target: np.ndarray,
+              foot_rot: np.ndarray, reach: float, max_miss: float = 0.0) -> bool:
+    """Rotate hip and knee (world rotations, in place) so the ankle reaches `target`; set the ankle's world
+    rotation to `foot_rot`. A target up to `max_miss` beyond the stretched leg is approached as near as the
+    leg goes; further out it returns False and changes nothing."""
+    hip, knee, ankle, _ = leg
+    h = joints[hip]
+    l1 = np.linalg.norm(glob[hip] @ _OFFSETS[knee])
+    l2 = np.linalg.norm(glob[knee] @ _OFFSETS[ankle])
+    d_true = float(np.linalg.norm(target - h))
+    d = min(d_true, reach * (l1 + l2))
+    if d_true - d > max_miss or d < abs(l1 - l2) + 1e-4:
+        return False
+    k = h + glob[hip] @ _OFFSETS[knee]
+    a = k + glob[knee] @ _OFFSETS[ankle]
+    # 1) bend the knee so the hip-ankle distance becomes d (law of cosines), about the leg plane's normal
+    upper, lower = k - h, a - k
+    normal = np.cross(upper, lower)
+    if np.linalg.norm(normal) < 1e-9:           # a straight leg: bend about the hip's sideways axis
+        normal = glob[hip][:, 0]
+    normal = normal / np.linalg.norm(normal)
+    cur = np.arccos(np.clip((upper @ lower) / (l1 * l2), -1.0, 1.0))        # angle between the bones
+    want = np.arccos(np.clip((d * d - l1 * l1 - l2 * l2) / (2 * l1 * l2), -1.0, 1.0))
+    bend = _axis_angle(normal, want - cur)
+    glob[knee] = bend @ glob[knee]
+    a = k + glob[knee] @ _OFFSETS[ankle]
+    # 2) swing the whole leg about the hip so the ankle points at the target
+    swing = _rotation_between(a - h, target - h)
+    glob[hip] = swing @ glob[hip]
+    glob[knee] = swing @ glob[knee]
+    glob[ankle] = foot_rot
+    return True
+
+
+def local_from_global(glob: np.ndarray, joints_idx: tuple[int, ...], local_rot: np.ndarray) -> None:
+    """Write the local rotations of `joints_idx` from world rotations (in place)."""
+    for i in joints_idx:
+        local_rot[i] = glob[PARENTS[i]].T @ glob[i]
+
+
+class FootLock:
+    """Per-session contact state; `apply` cleans one frame and returns the per-foot contacts."""
+
+    def __init__(self, config: FootLockConfig | None = None) -> None:
+        self.cfg = config or FootLockConfig()
+        self.reset()
+
+    def reset(self) -> None:
+        self._prev_toe = {side: None for side in LEGS}
+        self._anchor: dict[str, np.ndarray | None] = {side: None for side in LEGS}
+        self._fade: dict[str, tuple[int, np.ndarray] | None] = {side: None for side in LEGS}
+
+    def _contact(self, side: str, toe: np.ndarray, floor: float) -> bool:
+        prev = self._prev_toe[side]
+        speed = 0.0 if prev is None else float(np.linalg.norm(toe[:2] - prev[:2]) * FPS)
+        sole = toe[2] - SOLE_BELOW_FOOT_JOINT - floor
+        if self._anchor[side] is not None:
+            return sole < self.cfg.lift_height and speed < self.cfg.lift_speed
+        return sole < self.cfg.touch_height and speed < self.cfg.touch_speed
+
+    def apply(self, local_rot: np.ndarray, joints: np.ndarray, floor: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """local_rot (22, 3, 3) and joints (22, 3) of one raw frame -> (cleaned local_rot, contacts (2,) bool).
+
+        The caller recomputes joints from the returned rotations (the pelvis is not moved)."""
+        out = local_rot.copy()
+        glob = None
+        contacts = np.zeros(2, bool)
+        for n, (side, leg) in enumerate(LEGS.items()):
+            toe = joints[leg[3]]
+            in_contact = self._contact(side, toe, floor)
+            self._prev_toe[side] = toe.copy()
+            if glob is None:
+                glob = global_rotations(local_rot)
+            if in_contact and self._anchor[side] is None:
+                self._anchor[side] = toe.copy()
+            if not in_contact and self._anchor[side] is not None:
+                self._fade[side] = (self.cfg.fade_frames, self._anchor[side])
+                self._anchor[side] = None
+            foot = glob[leg[2]].copy()
+            toe_offset = foot @ _OFFSETS[leg[3]]
+            if self._anchor[side] is not None:
+                if solve_leg(glob, joints, leg, self._anchor[side] - toe_offset, foot, self.cfg.reach, self.cfg.max_miss):
+                    contacts[n] = True
+                else:                                   # out of reach: let this foot go
+                    self._fade[side] = (self.cfg.fade_frames, self._anchor[side])
+                    self._anchor[side] = None
+            if self._anchor[side] is None and self._fade[side] is not None:
+                left, anchor = self._fade[side]
+                w = left / (self.cfg.fade_frames + 1.0)
+                target = (1.0 - w) * toe + w * anchor
+                solve_leg(glob, joints, leg, target - toe_offset, foot, self.cfg.reach, self.cfg.max_miss)
+                self._fade[side] = (left - 1, anchor) if left > 1 else None
+            local_from_global(glob, leg[:3], out)
+        return out, contacts
