@@ -1,6 +1,6 @@
 """Demo scene: a shipped CMU walk as the partner, a table, a goal; bake the ego; save demo.blend and a PNG strip.
 
-    python -m remogen_blender.demo --out demo_out            # with the bpy module (.venv-bpy45)
+    python -m remogen_blender.demo --out demo_out            # in a Python with the bpy module
     python -m remogen_blender.demo --out demo_out --model my.pt
 
 The partner clip (demo_data/cmu_05_01_walk.npz) is CMU trial 05_01 retargeted to the SMPL-X body at 10 fps;

@@ -1,20 +1,20 @@
 """The demo command: builds the scene from the shipped CMU clip, bakes, saves demo.blend and a PNG strip."""
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from blender_env import subprocess_env
 
 bpy = pytest.importorskip("bpy")
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_demo_scene_and_strip(tmp_path, tiny_model_file):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env = subprocess_env(ROOT)
     r = subprocess.run([sys.executable, "-m", "remogen_blender.demo", "--out", str(tmp_path), "--model",
                         str(tiny_model_file), "--shots", "2", "--size", "64"], cwd=tmp_path, env=env,
                        capture_output=True, text=True, timeout=300)
