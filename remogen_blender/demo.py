@@ -1,6 +1,6 @@
 """Demo scene: a shipped CMU walk as the partner, a table, a goal; bake the ego; save demo.blend and a PNG strip.
 
-    python -m remogen_blender.demo --out demo_out            # with the bpy module (.venv-bpy45)
+    python -m remogen_blender.demo --out demo_out            # in a Python with the bpy module
     python -m remogen_blender.demo --out demo_out --model my.pt
 
 The partner clip (demo_data/cmu_05_01_walk.npz) is CMU trial 05_01 retargeted to the SMPL-X body at 10 fps;
@@ -34,10 +34,11 @@ def make_clip(bvh: str, out: Path = CLIP) -> Path:
     return out
 
 
-def _look_at(ob, target) -> None:
-    from mathutils import Vector
-    d = Vector(target) - ob.location
-    ob.rotation_euler = d.to_track_quat('-Z', 'Y').to_euler()
+# The strip's camera looks from behind the ego, turned toward -X (the goal's side; the table stands at +X
+# and further away), from high enough that the table cannot hide the ego's legs.
+VIEW_AZIMUTH = math.radians(20.0)
+VIEW_ELEVATION = math.radians(32.0)
+FRAME_MARGIN = 0.06            # share of the picture left free at each edge
 
 
 def build_scene(context, fps: int = 24):
@@ -77,13 +78,14 @@ def build_scene(context, fps: int = 24):
     goal.location = (-0.9, end_y + 0.3, 0.0)
     goal.empty_display_type = 'SPHERE'
     goal.empty_display_size = 0.15
+    marker = _goal_marker(goal)
 
     st = scene.remogen
     st.partner, st.ego, st.scene_collection, st.goal = partner, ego, props, goal
     st.text = "walk to the person and wave"
     # looks for the strip render
     for ob, colour in ((partner.children[0], (0.25, 0.45, 0.9, 1.0)), (ego.children[0], (0.95, 0.55, 0.2, 1.0)),
-                       (table, (0.6, 0.6, 0.6, 1.0))):
+                       (table, (0.6, 0.6, 0.6, 1.0)), (marker, (0.2, 0.75, 0.3, 1.0))):
         ob.color = colour
     floor_me = bpy.data.meshes.new("Floor")       # looks only: not in Props, so not an obstacle
     floor_me.from_pydata([(-3.0, -6.0, 0.0), (3.0, -6.0, 0.0), (3.0, 3.0, 0.0), (-3.0, 3.0, 0.0)], [], [(0, 1, 2, 3)])
@@ -95,12 +97,93 @@ def build_scene(context, fps: int = 24):
     scene.world.color = (0.75, 0.78, 0.82)
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(cam)
-    mid_y = 0.5 * (float(pelvis[0, 1]) + end_y - 1.1)
-    cam.location = (9.5, mid_y, 2.4)
-    _look_at(cam, (0.0, mid_y, 0.8))
     scene.camera = cam
     scene.frame_set(1)
     return scene, n_frames
+
+
+def _goal_marker(goal):
+    """A flat green disc under the goal: empties do not render, and a mesh outside Props is no obstacle."""
+    import bpy
+    sides, radius = 24, 0.22
+    ang = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
+    verts = [(radius * math.cos(a), radius * math.sin(a), 0.01) for a in ang] + [(0.0, 0.0, 0.01)]
+    me = bpy.data.meshes.new("GoalMarker")
+    me.from_pydata(verts, [], [(k, (k + 1) % sides, sides) for k in range(sides)])
+    marker = bpy.data.objects.new("GoalMarker", me)
+    for coll in goal.users_collection:
+        coll.objects.link(marker)
+    marker.parent = goal
+    return marker
+
+
+def strip_subjects(scene) -> list:
+    """What every frame of the strip must show: both bodies, the table and the goal marker."""
+    st = scene.remogen
+    bodies = [c for ob in (st.ego, st.partner) for c in ob.children if c.type == 'MESH']
+    return bodies + [scene.objects["Table"], scene.objects["GoalMarker"]]
+
+
+def world_corners(objects) -> np.ndarray:
+    """(8 * len(objects), 3) world corners of the objects' evaluated bounding boxes (posed bodies too)."""
+    import bpy
+    dg = bpy.context.evaluated_depsgraph_get()
+    out = []
+    for ob in objects:
+        ev = ob.evaluated_get(dg)
+        mw = np.array(ev.matrix_world)
+        corners = np.array([tuple(c) for c in ev.bound_box], dtype=np.float64)
+        out.append(corners @ mw[:3, :3].T + mw[:3, 3])
+    return np.concatenate(out)
+
+
+def frame_camera(scene, frames: list[int], azimuth: float = VIEW_AZIMUTH, elevation: float = VIEW_ELEVATION,
+                 margin: float = FRAME_MARGIN) -> None:
+    """Aim scene.camera from a fixed direction, as close as keeps the strip's subjects in view at `frames`.
+
+    The lens shift centres them: it moves the picture without changing the perspective.
+    """
+    from mathutils import Vector
+    points = []
+    for f in frames:
+        scene.frame_set(f)
+        points.append(world_corners(strip_subjects(scene)))
+    pts = np.concatenate(points)
+    back = np.array((-math.sin(azimuth) * math.cos(elevation), -math.cos(azimuth) * math.cos(elevation),
+                     math.sin(elevation)))                      # from the subjects toward the camera
+    fwd = -back
+    right = np.cross(fwd, (0.0, 0.0, 1.0))
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    centre = 0.5 * (pts.min(0) + pts.max(0))
+    cam = scene.camera
+    data = cam.data
+    data.sensor_fit = 'AUTO'
+    r = scene.render
+    rx, ry = r.resolution_x * r.pixel_aspect_x, r.resolution_y * r.pixel_aspect_y
+    span = data.sensor_width / data.lens                     # picture width (larger side) at unit depth
+    width, height = (span, span * ry / rx) if rx >= ry else (span * rx / ry, span)
+    rel = pts - centre
+
+    def view(dist: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        depth = rel @ fwd + dist
+        return rel @ right / depth, rel @ up / depth, depth
+
+    def fits(dist: float) -> bool:
+        u, v, depth = view(dist)
+        return (depth.min() > 2.0 * data.clip_start and np.ptp(u) <= width * (1.0 - 2.0 * margin)
+                and np.ptp(v) <= height * (1.0 - 2.0 * margin))
+
+    near, far = 0.1, 1000.0
+    for _ in range(60):                                     # bisection on the camera distance
+        mid = 0.5 * (near + far)
+        near, far = (near, mid) if fits(mid) else (mid, far)
+    u, v, _ = view(far)
+    cam.location = tuple(centre + back * far)
+    cam.rotation_euler = Vector(tuple(fwd)).to_track_quat('-Z', 'Y').to_euler()
+    data.shift_x = 0.5 * (u.min() + u.max()) / span
+    data.shift_y = 0.5 * (v.min() + v.max()) / span
+    data.clip_end = max(data.clip_end, float(far + np.abs(rel).max() * 2.0))
 
 
 def render_strip(scene, frames: list[int], path: Path, size: int = 240) -> Path:
@@ -113,6 +196,7 @@ def render_strip(scene, frames: list[int], path: Path, size: int = 240) -> Path:
     scene.display.shading.color_type = 'OBJECT'
     r.image_settings.file_format = 'PNG'
     r.film_transparent = False
+    frame_camera(scene, frames)
     tiles = []
     for f in frames:
         scene.frame_set(f)
@@ -159,10 +243,11 @@ def run(out_dir: Path, model_path: str | None, strip_frames: int = 6, size: int 
         scene, n = build_scene(bpy.context)
         t0 = time.perf_counter()
         res = bake(scene, 1, n, model=model)
+        shots = [int(round(v)) for v in np.linspace(1, n, strip_frames)]
+        strip = render_strip(scene, shots, out_dir / "demo_strip.png", size=size)   # also frames the camera
+        scene.frame_set(1)
         blend = out_dir / "demo.blend"
         bpy.ops.wm.save_as_mainfile(filepath=str(blend))
-        shots = [int(round(v)) for v in np.linspace(1, n, strip_frames)]
-        strip = render_strip(scene, shots, out_dir / "demo_strip.png", size=size)
         print(f"remogen demo: baked {res.frames} frames ({res.model_frames} model frames, {res.model_fps:.0f}/s) "
               f"with the {note} in {time.perf_counter() - t0:.1f} s; saved {blend} and {strip} (frames {shots})")
         return 0
@@ -194,4 +279,4 @@ if __name__ == "__main__":
     rc = main(sys.argv[1:])
     sys.stdout.flush()
     sys.stderr.flush()
-    os._exit(rc)   # BLENDER_NOTES §4
+    os._exit(rc)   # skips interpreter shutdown, where the bpy module can hang with classes registered

@@ -2,7 +2,8 @@
 
 pip runs in a subprocess of Blender's own Python (`sys.executable`) with `--target`, so nothing outside
 the extension's folder changes; a worker thread reads its output into a one-line status that the
-preferences show. Failure ends with an actionable line, never a traceback.
+preferences show. Failure ends with an actionable line, never a traceback. Blender's "Allow Online
+Access" setting is obeyed: with it off, nothing is downloaded (local wheel folders still work).
 """
 from __future__ import annotations
 
@@ -16,6 +17,9 @@ from typing import Callable
 
 DEFAULT_REQUIREMENT = "torch"
 DEFAULT_INDEX = "https://download.pytorch.org/whl/cpu"
+PYPI = "https://pypi.org/simple"     # where pip looks when given no index
+OFFLINE_REFUSAL = ("Online access is off: enable Preferences > System > Network > Allow Online Access to "
+                   "install PyTorch, or install the offline zip with PyTorch bundled")
 
 
 @dataclass
@@ -43,6 +47,22 @@ def _pip_cmd(target: Path, requirement: str, index_url: str | None, find_links: 
     return cmd
 
 
+def online_access_allowed() -> bool:
+    """Blender's "Allow Online Access" (4.2+); True outside Blender or where the setting does not exist."""
+    try:
+        import bpy
+    except ImportError:
+        return True
+    return bool(getattr(bpy.app, "online_access", True))
+
+
+def offline_refusal(index_url: str | None, find_links: str | None = None, no_index: bool = False) -> str | None:
+    """OFFLINE_REFUSAL when pip would go online while Blender forbids it, else None."""
+    sources = ([] if no_index else [index_url or PYPI]) + ([find_links] if find_links else [])
+    online = any(src.split(":", 1)[0].lower() in ("http", "https") for src in sources)
+    return OFFLINE_REFUSAL if online and not online_access_allowed() else None
+
+
 def _ensure_pip(on_line: Callable[[str], None]) -> str | None:
     """None when pip works (bootstrapping it with ensurepip if needed), else why not."""
     ok = subprocess.run([sys.executable, "-m", "pip", "--version"], capture_output=True).returncode == 0
@@ -62,6 +82,9 @@ def install(target: Path, requirement: str = DEFAULT_REQUIREMENT, index_url: str
     say = on_line or (lambda _s: None)
     if not sys.executable or not os.path.exists(sys.executable):
         return False, "Cannot find Blender's Python executable to run pip; use the offline zip with PyTorch bundled"
+    refusal = offline_refusal(index_url, find_links, no_index)
+    if refusal:
+        return False, refusal
     err = _ensure_pip(say)
     if err:
         return False, f"PyTorch install failed: {err}; use the offline zip with PyTorch bundled"

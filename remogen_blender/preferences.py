@@ -50,6 +50,9 @@ class RemogenPreferences(bpy.types.AddonPreferences):
         row = box.row()
         row.enabled = not deps.status.running
         row.operator("remogen.install_torch", icon='IMPORT')
+        refusal = deps.offline_refusal(self.torch_index or None)
+        if refusal and deps.status.line != refusal:
+            box.label(text=refusal, icon='ERROR')
         if deps.status.line:
             box.label(text=deps.status.line, icon='INFO' if deps.status.ok or deps.status.running else 'ERROR')
         col = box.column(align=True)
@@ -69,6 +72,11 @@ class REMOGEN_OT_install_torch(bpy.types.Operator):
         prefs = get_prefs()
         req = prefs.torch_requirement if prefs else deps.DEFAULT_REQUIREMENT
         index = prefs.torch_index if prefs else deps.DEFAULT_INDEX
+        refusal = deps.offline_refusal(index or None)
+        if refusal:       # before any folder is made or pip started
+            deps.status.ok, deps.status.line, deps.status.done = False, refusal, True
+            self.report({'ERROR'}, refusal)
+            return {'CANCELLED'}
         target = _runtime.private_site_packages(create=True)
         if target is None:
             self.report({'ERROR'}, "No folder to install PyTorch into (is the add-on installed as an extension?)")

@@ -13,6 +13,7 @@ import bpy
 import numpy as np
 
 from ._runtime import UserError, runtime
+from .rig import EGO_MARK
 
 MAX_TRIANGLES = 5_000_000   # beyond this a voxelisation takes tens of seconds: ask for a smaller collection
 VOXEL_SIZE = 0.05
@@ -20,7 +21,7 @@ VOXEL_SIZE = 0.05
 
 def _is_character_mesh(ob: bpy.types.Object) -> bool:
     """Bodies skinned to or parented under an armature (the partner's, the ego's) are not scenery."""
-    if "remogen_ego" in ob:
+    if EGO_MARK in ob:
         return True
     p = ob.parent
     while p is not None:

@@ -1,9 +1,10 @@
 """Fixtures for the extension tests, run under the PyPI `bpy` module (skipped cleanly without it).
 
-    .venv-bpy45/bin/python -m pytest tests/blender
+    python -m pytest tests/blender                                              # the installed bpy (4.5)
+    REMOGEN_TEST_BLENDER=5.0 PYTHONPATH=.bpy5 python -m pytest tests/blender    # a second bpy put first
 
-Exit guard (BLENDER_NOTES §4): with Python objects still registered, the bpy 4.2 module segfaults and 4.5
-hangs at interpreter exit. After pytest has written its summary we flush and os._exit with its status.
+Exit guard: with Python objects still registered, the bpy 4.2 module segfaults and 4.5 hangs at
+interpreter exit. After pytest has written its summary we flush and os._exit with its status.
 """
 from __future__ import annotations
 
@@ -22,6 +23,20 @@ if not HAVE_BPY:
     collect_ignore_glob = ["test_*.py"]   # the plain test run has no bpy: nothing here to collect
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def pytest_configure(config):
+    """With $REMOGEN_TEST_BLENDER (like "5.0") set, refuse to run under any other Blender module."""
+    want = os.environ.get("REMOGEN_TEST_BLENDER", "")
+    if not want:
+        return
+    if not HAVE_BPY:
+        raise pytest.UsageError(f"REMOGEN_TEST_BLENDER={want} but no bpy module can be imported")
+    import bpy
+    got = "%d.%d" % bpy.app.version[:2]
+    if got != want:
+        raise pytest.UsageError(f"REMOGEN_TEST_BLENDER={want} but bpy {got} was imported ({bpy.__file__}); "
+                                "put the wanted bpy first on PYTHONPATH")
 
 
 def pytest_sessionfinish(session, exitstatus):

@@ -1,7 +1,8 @@
 """Run in a fresh process by test_build.py: install + enable the built zip in a fresh user folder, use it.
 
 argv: MODE ZIP_OR_DASH MODEL_FILE; MODE is "zip" (Install from Disk) or "folder" (already unpacked by
-build.py --install). Prints one JSON line; ends with os._exit (BLENDER_NOTES §4).
+build.py --install). Prints one JSON line; ends with os._exit (the bpy module can hang at
+interpreter exit).
 """
 import json
 import os
@@ -14,6 +15,7 @@ try:
     import bpy
     import addon_utils
 
+    out["blender"] = list(bpy.app.version)
     mod = "bl_ext.user_default.remogen_blender"
     if mode == "zip":
         out["install"] = sorted(bpy.ops.extensions.package_install_files(

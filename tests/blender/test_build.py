@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import os
 import subprocess
 import sys
 import zipfile
 from pathlib import Path
 
 import pytest
+from blender_env import subprocess_env
 
-pytest.importorskip("bpy")
+bpy = pytest.importorskip("bpy")
 ROOT = Path(__file__).resolve().parents[2]
 HERE = Path(__file__).resolve().parent
 
@@ -45,7 +45,7 @@ def _build(args: list[str]) -> subprocess.CompletedProcess:
 
 
 def _check_install(mode: str, zip_path: str, user: Path, model: Path, index: Path | None = None) -> dict:
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "REMOGEN_MODEL_FILE")}
+    env = subprocess_env(drop=("REMOGEN_MODEL_FILE",))      # not the source tree: the installed zip
     env["BLENDER_USER_RESOURCES"] = str(user)
     extra = [str(index)] if index else []
     r = subprocess.run([sys.executable, str(HERE / "install_check.py"), mode, zip_path, str(model), *extra],
@@ -54,6 +54,7 @@ def _check_install(mode: str, zip_path: str, user: Path, model: Path, index: Pat
     assert line, r.stdout[-2000:] + r.stderr[-2000:]
     out = json.loads(line[7:])
     assert "error" not in out, out.get("traceback")
+    assert out["blender"] == list(bpy.app.version)           # the same Blender as this test process
     return out
 
 

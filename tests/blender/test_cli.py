@@ -1,12 +1,12 @@
 """The headless command: cli_main() in process (what `blender -c remogen` calls) and the bpy-module batch entry."""
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from blender_env import subprocess_env
 
 bpy = pytest.importorskip("bpy")
 ROOT = Path(__file__).resolve().parents[2]
@@ -78,7 +78,7 @@ def test_cli_usage(capsys):
 def test_batch_module_in_subprocess(fresh, tmp_path, tiny_model_file):
     src, out = tmp_path / "scene.blend", tmp_path / "out.blend"
     _saved_scene(fresh, src, with_settings=True)
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env = subprocess_env(ROOT)
     r = subprocess.run([sys.executable, "-m", "remogen_blender.batch", "bake", "--blend", str(src),
                         "--frames", "1", "10", "--model", str(tiny_model_file), "--threads", "1",
                         "--output", str(out)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)

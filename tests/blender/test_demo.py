@@ -1,19 +1,20 @@
 """The demo command: builds the scene from the shipped CMU clip, bakes, saves demo.blend and a PNG strip."""
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
+from blender_env import subprocess_env
 
 bpy = pytest.importorskip("bpy")
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_demo_scene_and_strip(tmp_path, tiny_model_file):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env = subprocess_env(ROOT)
     r = subprocess.run([sys.executable, "-m", "remogen_blender.demo", "--out", str(tmp_path), "--model",
                         str(tiny_model_file), "--shots", "2", "--size", "64"], cwd=tmp_path, env=env,
                        capture_output=True, text=True, timeout=300)
@@ -32,3 +33,44 @@ def test_demo_clip_is_small_cmu_data():
     assert clip["local_rotations"].shape[1:] == (22, 4) and len(clip["pelvis"]) == len(clip["local_rotations"])
     assert "mocap.cs.cmu.edu" in str(clip["credit"])
     assert (ROOT / "remogen_blender" / "demo_data" / "cmu_05_01_walk.npz").stat().st_size < 100_000
+
+
+def _screen(scene, points):
+    """(N, 3) world points -> (N, 3) camera view: x, y in 0..1 inside the picture, z the depth in front."""
+    from bpy_extras.object_utils import world_to_camera_view
+    from mathutils import Vector
+    return np.array([tuple(world_to_camera_view(scene, scene.camera, Vector(tuple(p)))) for p in points])
+
+
+def test_strip_camera_shows_ego_table_and_goal(fresh, tiny_model_file, tmp_path):
+    """Every strip frame shows the ego's whole body (feet included), the table and the goal marker, and no
+    ego joint or the goal lies behind the table where the table covers it on screen."""
+    from model_runtime import load_model
+    from remogen_blender import demo, rig
+    from remogen_blender.bake import bake
+    scene, n = demo.build_scene(fresh)
+    bake(scene, 1, n, model=load_model(str(tiny_model_file)))
+    shots = [1, 40, 80, n]
+    demo.render_strip(scene, shots, tmp_path / "strip.png", size=32)
+    st = scene.remogen
+    marker = scene.objects["GoalMarker"]
+    assert marker.type == 'MESH' and marker.parent == st.goal and not marker.hide_render   # rendered, unlike an empty
+    ego_body = next(c for c in st.ego.children if c.type == 'MESH')
+    writer = rig.EgoWriter(st.ego)
+    for f in shots:
+        scene.frame_set(f)
+        joints = writer.world_heads(fresh.evaluated_depsgraph_get())    # all 22, the feet and ankles included
+        goal = np.array(st.goal.matrix_world.translation)[None]
+        table = demo.world_corners([scene.objects["Table"]])
+        seen = {"ego joints": joints, "ego body": demo.world_corners([ego_body]), "goal": goal,
+                "goal marker": demo.world_corners([marker]), "table": table}
+        for what, pts in seen.items():
+            s = _screen(scene, pts)
+            inside = (s[:, 0] > 0.0) & (s[:, 0] < 1.0) & (s[:, 1] > 0.0) & (s[:, 1] < 1.0) & (s[:, 2] > 0.0)
+            assert inside.all(), f"frame {f}: {what} out of the picture at {s[~inside][:3]}"
+        t = _screen(scene, table)
+        for what, pts in (("ego joints", joints), ("goal", goal)):
+            s = _screen(scene, pts)
+            covered = ((s[:, 0] >= t[:, 0].min()) & (s[:, 0] <= t[:, 0].max())
+                       & (s[:, 1] >= t[:, 1].min()) & (s[:, 1] <= t[:, 1].max()))
+            assert (s[covered, 2] < t[:, 2].min()).all(), f"frame {f}: the table hides {what}"

@@ -74,9 +74,10 @@ def test_partner_reader_matches_bone_heads(fresh, family):
 
 def test_partner_reader_lerp_and_end(fresh):
     import scenes
+    from model_runtime import JOINT_NAMES
     from remogen_blender import rig
     ob = scenes.make_armature("P")
-    mapping = {j: j for j in rig.api().JOINT_NAMES}
+    mapping = {j: j for j in JOINT_NAMES}
     mapping["spine2"] = "lerp:spine1:spine3:0.25"
     mapping["head"] = "end:neck"
     got = rig.PartnerReader(ob, mapping).read(fresh.evaluated_depsgraph_get())
@@ -143,3 +144,34 @@ def test_smplx_mesh_with_fake_package(fresh, tmp_path, monkeypatch):
     v22 = body.data.vertices[22]
     assert [groups[g.group] for g in v22.groups] == ["head"]       # joint 22 -> parent 15 (head)
     assert [groups[g.group] for g in body.data.vertices[24].groups] == ["right_wrist"]
+
+
+@pytest.mark.parametrize("kind", ["MESH", "EMPTY"])
+def test_partner_that_is_no_armature_gives_one_line(fresh, kind, capfd):
+    """Python skips the picker's armature filter: every reader of the partner names the mistake in one line."""
+    import scenes
+    from remogen_blender import live, rig
+    from remogen_blender._runtime import UserError
+    d = scenes.demo_scene(fresh)
+    if kind == "MESH":
+        wrong = scenes.make_box("Crate", (0.0, -3.0, 0.0))
+        want = "Partner 'Crate' is a MESH, not an armature: pick the partner's armature"
+    else:
+        wrong = bpy.data.objects.new("Marker", None)
+        fresh.scene.collection.objects.link(wrong)
+        want = "Partner 'Marker' is an EMPTY, not an armature: pick the partner's armature"
+    st = fresh.scene.remogen
+    st.partner = wrong                      # the update callback must not raise or print a traceback
+    assert "Traceback" not in capfd.readouterr().err
+    with pytest.raises(UserError) as err:
+        rig.PartnerReader(wrong, rig.bone_map_dict(st))
+    assert str(err.value) == want
+    with pytest.raises(UserError) as err:
+        rig.fill_bone_map(st, wrong)
+    assert str(err.value) == want
+    n_actions = len(bpy.data.actions)
+    for op in (bpy.ops.remogen.guess_bone_map, bpy.ops.remogen.live_start, bpy.ops.remogen.bake):
+        with pytest.raises(RuntimeError) as err:
+            op()
+        assert str(err.value).strip() == f"Error: {want}", op
+    assert not live.is_running() and len(bpy.data.actions) == n_actions and d["ego"].animation_data is None
