@@ -2,7 +2,7 @@
 
     .venv-bpy45/bin/python -m pytest tests/blender
 
-Exit guard (BLENDER_NOTES §4): with Python objects still registered, the bpy 4.2 module segfaults and 4.5
+Exit guard: with Python objects still registered, the bpy 4.2 module segfaults and 4.5
 hangs at interpreter exit. After pytest has written its summary we flush and os._exit with its status.
 """
 from __future__ import annotations
