@@ -295,3 +295,16 @@ def test_centimetre_partner_is_named_before_the_scene(fresh):
     with pytest.raises(RuntimeError, match="looks like centimetres: scale it by 0.01"):
         bpy.ops.remogen.bake()
     assert _snapshot() == before
+
+
+def test_multi_line_runtime_message_is_reported_as_one_line(fresh, monkeypatch):
+    """A runtime message that spans lines (a goal array printed whole) reaches the user as one line."""
+    from remogen_blender import frame
+    _scene(frames=(1, 12))
+    monkeypatch.setattr(frame.FrameDriver, "_goal", staticmethod(lambda st, dg: np.zeros((4, 3))))
+    before = _snapshot()
+    with pytest.raises(RuntimeError) as exc:
+        bpy.ops.remogen.bake()
+    msg = str(exc.value).strip()
+    assert "goal" in msg and "\n" not in msg, msg
+    assert _snapshot() == before
