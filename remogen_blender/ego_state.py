@@ -73,13 +73,16 @@ class HeldAction:
     def put_back(self, ob: bpy.types.Object | None) -> None:
         """Assign the action (and its slot) again with its own fake-user flag.
 
-        With the object gone the fake user stays: the action must not vanish with the next save.
+        With the object gone, or another action assigned to it meanwhile, the fake user stays: the action
+        must not vanish with the next save.
         """
         act = self._action()
         if act is None:
             return
         try:
             ad = ob.animation_data or ob.animation_data_create()
+            if ad.action is not None and ad.action != act:
+                return      # the user assigned another action meanwhile: keep it, and keep ours safe too
             ad.action = act
         except (ReferenceError, AttributeError):
             return

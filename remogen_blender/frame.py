@@ -298,6 +298,7 @@ def _alpha(st: Any) -> dict[str, float]:
 
 
 def _check_position(p: np.ndarray, what: str) -> None:
+    # Blender clamps inf to float32 max, which passes a finiteness check and overflows later: bound it too.
     if not np.isfinite(p).all() or np.abs(p).max() > _RT.MAX_COORD:
         raise UserError(f"{what} has a NaN, infinite or far-off position (beyond {_RT.MAX_COORD:g} m); "
                         "fix its transform or animation")

@@ -186,7 +186,7 @@ class REMOGEN_OT_bake(bpy.types.Operator):
     frame_start: IntProperty(name="Start", default=-1, description="-1: the scene's start")
     frame_end: IntProperty(name="End", default=-1, description="-1: the scene's end")
 
-    _run: ModalBake | None = None
+    _run = None     # the ModalBake of an invoked (UI) bake
 
     def _job(self, context: bpy.types.Context):
         from .bake import BakeJob
@@ -222,7 +222,7 @@ class REMOGEN_OT_bake(bpy.types.Operator):
             run.cancel(context)
             self.report({'INFO'}, "Bake cancelled; nothing was changed")
             return {'CANCELLED'}
-        if event.type != 'TIMER' or event.time_duration < 0:
+        if event.type != 'TIMER':
             return {'RUNNING_MODAL'}     # the scene must not change under the bake: other events wait
         try:
             if not run.tick(context):

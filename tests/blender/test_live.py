@@ -320,3 +320,16 @@ def test_partner_deleted_with_the_operator_stops_live(fresh):
     assert msg.startswith("Live stopped:") and "Partner 'Partner' was deleted" in msg and "\n" not in msg
     with pytest.raises(RuntimeError, match="Partner was deleted or is not in scene"):
         bpy.ops.remogen.live_start()
+
+
+def test_an_action_assigned_during_live_is_kept_and_so_is_the_old_one(fresh):
+    from remogen_blender import live
+    d, _ = _run(fresh, [1])
+    live.stop()
+    ego = d["ego"]
+    old = _give_action(ego, "Old")
+    bpy.ops.remogen.live_start()
+    new = bpy.data.actions.new("New")
+    ego.animation_data.action = new
+    live.stop()
+    assert ego.animation_data.action == new and old.use_fake_user     # neither is lost on the next save
