@@ -97,7 +97,8 @@ def _snapshot():
 
 
 @pytest.mark.parametrize("case", ["no_partner", "non_humanoid", "partner_nan", "goal_nan", "empty_collection",
-                                  "huge_collection", "missing_model", "foreign_model", "empty_range"])
+                                  "huge_collection", "missing_model", "foreign_model", "empty_range",
+                                  "guidance_out_of_range"])
 def test_bad_inputs_leave_file_unchanged(fresh, case, tmp_path, monkeypatch):
     import scenes
     from remogen_blender import scene as scene_mod
@@ -132,6 +133,9 @@ def test_bad_inputs_leave_file_unchanged(fresh, case, tmp_path, monkeypatch):
         torch.save({"weights": torch.zeros(3)}, p)
         monkeypatch.setenv("REMOGEN_MODEL_FILE", str(p))
         match = "not a ReMoGen model file"
+    elif case == "guidance_out_of_range":
+        st["guidance"] = 1e30          # as stored in a file saved before the property had a limit
+        match = "Guidance 1e+30 is out of range: set it between 0 and 20"
     else:
         kwargs = {"frame_start": 10, "frame_end": 5}
         match = "is empty"
