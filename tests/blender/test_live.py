@@ -163,9 +163,9 @@ def test_ego_deleted_mid_run_stops_cleanly(fresh):
 def test_imported_cmu_bvh_partner(fresh):
     """A real rig: Blender's BVH importer on a shared CMU clip (DAZ names) is mapped and drives live."""
     import addon_utils
-    from pathlib import Path
+    from paths import SHARED
     from remogen_blender import live, rig
-    bvh = Path(__file__).resolve().parents[3] / "shared" / "data" / "cmu" / "daz_friendly_120fps" / "05" / "05_01.bvh"
+    bvh = SHARED / "data" / "cmu" / "daz_friendly_120fps" / "05" / "05_01.bvh"
     if not bvh.is_file():
         pytest.skip("shared CMU data not available")
     addon_utils.enable("io_anim_bvh")
