@@ -7,6 +7,7 @@ from bpy.props import (BoolProperty, CollectionProperty, FloatProperty, IntPrope
 # the output blow up (1e30 gives NaN joints); the seed is a 32-bit property.
 GUIDANCE_MAX = 20.0
 SEED_MAX = 2**31 - 1
+_GUIDANCE_HELP = f"Classifier-free guidance on the text (0 to {GUIDANCE_MAX:g})"
 
 
 def _is_armature(_self, ob: bpy.types.Object) -> bool:
@@ -49,7 +50,7 @@ class RemogenSettings(bpy.types.PropertyGroup):
         description="How strongly the ego reacts to the scene meshes and the goal")
     guidance: FloatProperty(
         name="Guidance", default=5.0, min=0.0, max=GUIDANCE_MAX, soft_max=10.0,
-        description=f"Classifier-free guidance on the text (0 to {GUIDANCE_MAX:g})")
+        description=_GUIDANCE_HELP)
     seed: IntProperty(
         name="Seed", default=0, min=0, max=SEED_MAX,
         description="Same seed and inputs give the same motion")
