@@ -95,6 +95,12 @@ def remogen_errors() -> tuple[type[BaseException], ...]:
     return (UserError, api().RemogenError)
 
 
+def error_line(exc: BaseException) -> str:
+    """One line for the user: the message of a predictable error, else the type and message."""
+    msg = str(exc) if isinstance(exc, remogen_errors()) else f"{type(exc).__name__}: {exc}"
+    return " ".join(msg.split())
+
+
 # ---------------------------------------------------------------------------- model cache
 
 _model_cache: dict[str, Any] = {"key": None, "model": None}

@@ -1,9 +1,13 @@
 """Bake: generate a frame range deterministically for the seed and key it into a new action on the ego.
 
-The session is stepped once per model frame (0.1 s) with the partner evaluated at exactly that time
-(sub-frames when the scene fps is not a multiple of 10); every scene frame in the range is then keyed from
-the model frames around it. Nothing is written until generation succeeded, and the scene's current frame
-and the ego's pose are put back whatever happens, so a failed bake leaves the file as it was.
+The session is stepped once per model frame (0.1 s) with the partner as Live sees it during playback: at
+the scene frame where Live first needs that model frame (the frame at its time at 10 fps, up to 0.1 s
+earlier at other rates). Every scene frame in the range is then keyed from the model frames around it,
+interpolated as Live shows them, so a bake replays what Live shows frame by frame. Nothing is written until generation succeeded, and the scene's current frame
+and the ego's pose are put back whatever happens, so a failed or cancelled bake leaves the file as it was.
+
+`BakeJob` does the work in steps, so that the UI operator can run it a chunk per timer tick (progress,
+Esc) and a script or the command line can stop it between model frames; `bake()` runs one to the end.
 """
 from __future__ import annotations
 
@@ -17,9 +21,15 @@ import numpy as np
 
 from . import action as action_mod
 from ._runtime import UserError, api
+from .ego_state import PoseSnapshot
 from .frame import FrameDriver, scene_fps
 
-MAX_FRAMES = 100_000
+MAX_FRAMES = 100_000         # scene frames keyed in one bake
+MAX_MODEL_SECONDS = 3600.0   # model time generated in one bake (36,000 model frames at 10 fps)
+
+
+class BakeCancelled(UserError):
+    """The bake was cancelled; the scene, the ego and its action are as they were."""
 
 
 @dataclass
@@ -35,63 +45,115 @@ class BakeResult:
         return self.model_frames / self.seconds if self.seconds > 0 else float("inf")
 
 
+class BakeJob:
+    """One bake: check the range, generate model frames in steps, then key them (or put everything back)."""
+
+    def __init__(self, scene: bpy.types.Scene, frame_start: int | None = None, frame_end: int | None = None,
+                 model: Any = None, name: str | None = None) -> None:
+        f0 = scene.frame_start if frame_start is None else int(frame_start)
+        f1 = scene.frame_end if frame_end is None else int(frame_end)
+        if f1 < f0:
+            raise UserError(f"Bake range {f0}..{f1} is empty; the end frame must not be before the start")
+        if f1 - f0 + 1 > MAX_FRAMES:
+            raise UserError(f"Bake range {f0}..{f1} has more than {MAX_FRAMES:,} frames; bake it in parts")
+        self.scene = scene
+        self.f0, self.f1 = f0, f1
+        self.fps = scene_fps(scene)
+        self.name = name
+        self.driver = FrameDriver(scene, model=model, keep_frames=None)
+        dt = self.driver.dt
+        # Model frames, not scene frames, are the cost: 12 frames at 0.001 fps are 12,000 s of motion.
+        self.total = int(math.ceil((f1 - f0) / self.fps / dt - 1e-6)) + 1
+        limit = int(round(MAX_MODEL_SECONDS / dt))
+        if self.total > limit:
+            raise UserError(f"Bake range {f0}..{f1} at {self.fps:g} fps is {(f1 - f0) / self.fps:,.0f} s, "
+                            f"{self.total:,} model frames; the limit is {limit:,} ({MAX_MODEL_SECONDS / 60:g} "
+                            "minutes of motion): bake it in parts or check the scene's frame rate")
+        self.done = 0                # model frames generated so far
+        self._frame = f0             # the scene frame the next model frame reads the partner at
+        self._frame_set: int | None = None
+        self.ego = self.driver.writer.object
+        self._saved_frame = (scene.frame_current, scene.frame_subframe)
+        self._saved_pose = PoseSnapshot.take(self.ego)
+        self._t_start = time.perf_counter()   # generation and keying: loading the model is not the bake's speed
+        self._closed = False
+
+    @property
+    def finished_generating(self) -> bool:
+        return self.done >= self.total
+
+    def step(self, max_frames: int = 1, seconds: float | None = None) -> bool:
+        """Generate up to `max_frames` model frames (or as many as fit in `seconds`, at least one).
+
+        Returns True once every model frame is generated. Any error puts the scene back first.
+        """
+        t_end = None if seconds is None else time.perf_counter() + seconds
+        try:
+            n = 0
+            while not self.finished_generating and (n < max_frames if t_end is None
+                                                    else (n == 0 or time.perf_counter() < t_end)):
+                self._generate(self.done)
+                self.done += 1
+                n += 1
+        except BaseException:
+            self.cancel()
+            raise
+        return self.finished_generating
+
+    def _generate(self, k: int) -> None:
+        dt, scene, driver = self.driver.dt, self.scene, self.driver
+        while driver.last_needed((self._frame - self.f0) / self.fps) < k:
+            self._frame += 1
+        if self._frame != self._frame_set:
+            scene.frame_set(self._frame)
+            self._frame_set = self._frame
+        driver.update(scene, bpy.context.evaluated_depsgraph_get(), model_time=k * dt, write=False)
+
+    def cancel(self) -> None:
+        """Put the current frame and the ego's pose back; nothing was written. Safe to call twice."""
+        if self._closed:
+            return
+        self._closed = True
+        self.scene.frame_set(self._saved_frame[0], subframe=self._saved_frame[1])
+        self._saved_pose.restore(self.ego)
+
+    def finish(self) -> BakeResult:
+        """Key every scene frame into a new action on the ego (the only change the bake makes)."""
+        if not self.finished_generating:
+            raise RuntimeError("BakeJob.finish() before every model frame was generated")
+        try:
+            frames = np.arange(self.f0, self.f1 + 1, dtype=np.float64)
+            poses = self.driver.poses_at((frames - self.f0) / self.fps)
+            locs, rots = self.driver.writer.pose_channels(poses.pelvis, poses.local_rotations)
+            rots = api().continuous_quaternions(rots)
+            if not (np.isfinite(locs).all() and np.isfinite(rots).all()):
+                raise UserError(f"Ego '{self.ego.name}': the baked poses are not finite and were not keyed; "
+                                "check the ego's transform")
+        except BaseException:
+            self.cancel()
+            raise
+        self.scene.frame_set(self._saved_frame[0], subframe=self._saved_frame[1])
+        st = self.scene.remogen
+        act, replaced = action_mod.write_pose_keys(
+            self.ego, self.name or f"ReMoGen_{self.ego.name}_seed{st.seed}", frames, list(api().JOINT_NAMES),
+            locs, rots, root="pelvis")
+        self._saved_pose.restore(self.ego)   # the new action drives the pose from here on
+        self._closed = True
+        return BakeResult(act, len(frames), self.total, time.perf_counter() - self._t_start, replaced)
+
+
 def bake(scene: bpy.types.Scene, frame_start: int | None = None, frame_end: int | None = None,
          model: Any = None, progress: Callable[[int, int], None] | None = None,
-         name: str | None = None) -> BakeResult:
-    f0 = scene.frame_start if frame_start is None else int(frame_start)
-    f1 = scene.frame_end if frame_end is None else int(frame_end)
-    if f1 < f0:
-        raise UserError(f"Bake range {f0}..{f1} is empty; the end frame must not be before the start")
-    if f1 - f0 + 1 > MAX_FRAMES:
-        raise UserError(f"Bake range {f0}..{f1} has more than {MAX_FRAMES:,} frames; bake it in parts")
-    fps = scene_fps(scene)
-    driver = FrameDriver(scene, model=model, keep_frames=None)
-    t_start = time.perf_counter()   # generation and keying only: loading the model is not the bake's speed
-    ego = driver.writer.object
-    n_model = int(math.ceil((f1 - f0) / fps / driver.dt - 1e-6)) + 1
-    saved_frame = (scene.frame_current, scene.frame_subframe)
-    saved_pose = _pose_snapshot(ego)
-    ok = False
-    try:
-        for k in range(n_model):
-            f = f0 + k * driver.dt * fps
-            fi = int(math.floor(f + 1e-9))
-            scene.frame_set(fi, subframe=max(0.0, f - fi))
-            driver.update(scene, bpy.context.evaluated_depsgraph_get(), model_time=k * driver.dt, write=False)
-            if progress is not None:
-                progress(k + 1, n_model)
-        frames = np.arange(f0, f1 + 1, dtype=np.float64)
-        poses = driver.poses_at((frames - f0) / fps)
-        locs, rots = driver.writer.pose_channels(poses.pelvis, poses.local_rotations)
-        rots = api().continuous_quaternions(rots)
-        if not (np.isfinite(locs).all() and np.isfinite(rots).all()):
-            raise UserError("The model produced NaN poses; check the model file and the inputs")
-        ok = True
-    finally:
-        scene.frame_set(saved_frame[0], subframe=saved_frame[1])
-        if not ok:
-            _pose_restore(ego, saved_pose)
-    st = scene.remogen
-    act, replaced = action_mod.write_pose_keys(
-        ego, name or f"ReMoGen_{ego.name}_seed{st.seed}", frames, list(api().JOINT_NAMES), locs, rots, root="pelvis")
-    _pose_restore(ego, saved_pose)   # the new action drives the pose from here on
-    scene.frame_set(saved_frame[0], subframe=saved_frame[1])
-    return BakeResult(act, len(frames), n_model, time.perf_counter() - t_start, replaced)
-
-
-def _pose_snapshot(ob: bpy.types.Object) -> tuple[np.ndarray, np.ndarray]:
-    n = len(ob.pose.bones)
-    q = np.empty(n * 4, dtype=np.float32)
-    loc = np.empty(n * 3, dtype=np.float32)
-    ob.pose.bones.foreach_get("rotation_quaternion", q)
-    ob.pose.bones.foreach_get("location", loc)
-    return q, loc
-
-
-def _pose_restore(ob: bpy.types.Object, snap: tuple[np.ndarray, np.ndarray]) -> None:
-    try:
-        ob.pose.bones.foreach_set("rotation_quaternion", snap[0])
-        ob.pose.bones.foreach_set("location", snap[1])
-        ob.update_tag()
-    except ReferenceError:
-        pass
+         name: str | None = None, cancelled: Callable[[], bool] | None = None) -> BakeResult:
+    """Bake to the end. progress(done, total) after each model frame; cancelled() True stops the bake
+    before the next model frame with BakeCancelled, leaving everything as it was."""
+    job = BakeJob(scene, frame_start, frame_end, model=model, name=name)
+    while not job.finished_generating:
+        if cancelled is not None and cancelled():
+            job.cancel()
+            raise BakeCancelled(f"Bake cancelled after {job.done:,} of {job.total:,} model frames; "
+                                "nothing was changed")
+        job.step()
+        if progress is not None:
+            progress(job.done, job.total)
+    return job.finish()

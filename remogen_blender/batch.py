@@ -2,8 +2,9 @@
 
     python -m remogen_blender.batch bake --blend scene.blend --partner Partner --frames 1 240 --output out.blend
 
-Same arguments as `blender -b -c remogen ...`. Ends with os._exit: with Python objects still registered,
-the bpy 4.2 module segfaults and 4.5 hangs at interpreter exit (BLENDER_NOTES §4).
+Same arguments and exit statuses as `blender -b -c remogen ...` (0 done, 1 error, 2 bad arguments, 130 / 143
+stopped by Ctrl-C / SIGTERM with no output written). Ends with os._exit: with Python objects still
+registered, the bpy 4.2 module segfaults and 4.5 hangs at interpreter exit.
 """
 from __future__ import annotations
 

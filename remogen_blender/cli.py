@@ -1,22 +1,38 @@
 """`blender -b -c remogen bake ...` (registered with bpy.utils.register_cli_command) and the same for batch.py.
 
 `cli_main(argv) -> int` parses its own arguments and opens the .blend itself when given `--blend`, so it
-behaves the same whether Blender loaded a file before the command runs or not.
+behaves the same whether Blender loaded a file before the command runs or not. Ctrl-C (SIGINT) or SIGTERM
+stops a bake between two model frames: exit status 130 or 143, and no output file. The output is written
+under a temporary name and renamed only once complete.
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
+import math
+import os
+import signal
 import sys
 import time
-from typing import Sequence
+from typing import Iterator, Sequence
+
+from .properties import GUIDANCE_MAX, SEED_MAX
 
 USAGE_EXAMPLE = ('remogen bake --blend scene.blend --partner Partner --scene-collection Props --goal Goal '
                  '--text "walk to the person and wave" --alpha-hhi 1 --alpha-hsi 0.5 --frames 1 240 --seed 0 '
                  '--output out.blend')
 
 
+class _Parser(argparse.ArgumentParser):
+    """Argument errors as one line (argparse prints the whole usage first)."""
+
+    def error(self, message: str) -> None:   # type: ignore[override]
+        print(f"{self.prog}: error: {message} (see '{self.prog} --help')", file=sys.stderr)
+        raise SystemExit(2)
+
+
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="remogen", description="ReMoGen reactive motion for Blender, headless",
+    p = _Parser(prog="remogen", description="ReMoGen reactive motion for Blender, headless",
                                 epilog="example: " + USAGE_EXAMPLE)
     sub = p.add_subparsers(dest="command", required=True)
     b = sub.add_parser("bake", help="generate the ego's reaction for a frame range into a new action")
@@ -29,8 +45,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--text", help="intent text")
     b.add_argument("--alpha-hhi", type=float, help="partner influence 0..1")
     b.add_argument("--alpha-hsi", type=float, help="scene influence 0..1")
-    b.add_argument("--guidance", type=float, help="classifier-free guidance")
-    b.add_argument("--seed", type=int, help="random seed")
+    b.add_argument("--guidance", type=float, help=f"classifier-free guidance 0..{GUIDANCE_MAX:g}")
+    b.add_argument("--seed", type=int, help=f"random seed 0..{SEED_MAX}")
     b.add_argument("--fwsr", dest="fwsr", action="store_true", default=None, help="frame-wise refinement on")
     b.add_argument("--no-fwsr", dest="fwsr", action="store_false", help="frame-wise refinement off")
     b.add_argument("--frames", type=int, nargs=2, metavar=("START", "END"), help="frame range (default: scene's)")
@@ -42,26 +58,79 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _err(msg: str) -> int:
-    print(f"remogen: error: {msg}", file=sys.stderr)
+    print(f"remogen: error: {' '.join(msg.split())}", file=sys.stderr)
     return 1
+
+
+class _Signals:
+    """SIGINT / SIGTERM noted (not acted on at once) so the bake stops cleanly between model frames."""
+
+    EXIT = {signal.SIGINT: 130, signal.SIGTERM: 143}   # 128 + the signal number, as shells report it
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+
+    def __call__(self, signum: int, _frame) -> None:
+        self.received = signum
+
+    def requested(self) -> bool:
+        return self.received is not None
+
+    def exit_code(self) -> int:
+        return self.EXIT.get(self.received, 128 + int(self.received or 0))
+
+
+@contextlib.contextmanager
+def _stop_on_signals() -> Iterator[_Signals]:
+    sig = _Signals()
+    old = {}
+    try:
+        for s in sig.EXIT:
+            old[s] = signal.signal(s, sig)
+    except ValueError:   # not the main thread: signals stay as they are
+        pass
+    try:
+        yield sig
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+def _save_output(bpy, out: str, sig: _Signals) -> None:
+    """Save a copy to `out` through a temporary file: `out` appears only complete, never after a signal."""
+    tmp = os.path.join(os.path.dirname(out), f".{os.path.basename(out)}.{os.getpid()}.partial.blend")
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=tmp, copy=True)
+        if not sig.requested():
+            os.replace(tmp, out)
+    finally:
+        for leftover in (tmp, tmp + "1"):
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(leftover)
 
 
 def cli_main(argv: Sequence[str]) -> int:
     try:
         args = _parser().parse_args(list(argv))
-    except SystemExit as exc:   # argparse already printed usage or help
+    except SystemExit as exc:   # argparse already printed the error or the help
         return int(exc.code or 0)
     if args.command == "bake":
-        return _bake(args)
+        with _stop_on_signals() as sig:
+            return _bake(args, sig)
     return _err(f"unknown command {args.command!r}")
 
 
-def _bake(args: argparse.Namespace) -> int:
-    import os
+def _cancelled(sig: _Signals, what: str) -> int:
+    name = signal.Signals(sig.received).name
+    print(f"remogen: {name}: {what}; no output file was written", file=sys.stderr)
+    return sig.exit_code()
+
+
+def _bake(args: argparse.Namespace, sig: _Signals) -> int:
     import bpy
     from . import rig
     from ._runtime import get_model, remogen_errors
-    from .bake import bake
+    from .bake import BakeCancelled, bake
 
     try:
         errors = (ReferenceError, *remogen_errors())
@@ -95,14 +164,20 @@ def _bake(args: argparse.Namespace) -> int:
                 last[0] = pct // 10
                 print(f"remogen: baking {pct}%", flush=True)
 
-        res = bake(scene, f0, f1, model=model, progress=progress)
+        res = bake(scene, f0, f1, model=model, progress=progress, cancelled=sig.requested)
+    except BakeCancelled as exc:
+        return _cancelled(sig, str(exc))
     except errors as exc:
         return _err(str(exc))
+    if sig.requested():
+        return _cancelled(sig, "stopped before saving")
     out = os.path.abspath(bpy.path.abspath(args.output))
     try:
-        bpy.ops.wm.save_as_mainfile(filepath=out, copy=True)
+        _save_output(bpy, out, sig)
     except RuntimeError as exc:
         return _err(f"cannot save '{out}': {str(exc).strip().splitlines()[-1]}")
+    if sig.requested():
+        return _cancelled(sig, "stopped while saving")
     print(f"remogen: baked frames {f0}-{f1} ({res.model_frames} model frames, {res.model_fps:.0f}/s, "
           f"{time.perf_counter() - t0:.1f} s) into action '{res.action.name}'; saved {out}")
     return 0
@@ -137,16 +212,16 @@ def _apply(args: argparse.Namespace, scene, st) -> None:
     for name in ("alpha_hhi", "alpha_hsi"):
         v = getattr(args, name)
         if v is not None:
-            if not 0.0 <= v <= 1.0:
+            if not 0.0 <= v <= 1.0:   # NaN fails this too
                 raise UserError(f"--{name.replace('_', '-')} must be between 0 and 1, got {v}")
             setattr(st, name, v)
     if args.guidance is not None:
-        if args.guidance < 0:
-            raise UserError(f"--guidance must be >= 0, got {args.guidance}")
+        if not (math.isfinite(args.guidance) and 0.0 <= args.guidance <= GUIDANCE_MAX):
+            raise UserError(f"--guidance must be between 0 and {GUIDANCE_MAX:g}, got {args.guidance}")
         st.guidance = args.guidance
     if args.seed is not None:
-        if args.seed < 0:
-            raise UserError(f"--seed must be >= 0, got {args.seed}")
+        if not 0 <= args.seed <= SEED_MAX:
+            raise UserError(f"--seed must be between 0 and {SEED_MAX} (a 32-bit seed), got {args.seed}")
         st.seed = args.seed
     if args.fwsr is not None:
         st.use_fwsr = args.fwsr

@@ -17,13 +17,14 @@ import numpy as np
 
 from . import rig
 from ._runtime import UserError, api, get_model, runtime, torch_error
+from .properties import GUIDANCE_MAX
+from .scene import SceneCache
 
 _RT = api()   # the runtime's public package; these parts of it need no PyTorch
-from .scene import SceneCache
 
 MODEL_DT = 0.1          # seconds per model frame of the shipped models; a FrameDriver uses its model.fps
 MAX_CATCH_UP = 1.0      # live: a forward jump longer than this continues from the current pose instead
-# Blender clamps inf to float32 max, which passes a finiteness check and overflows later: bound positions.
+MAX_PARTNER_SPAN = 5.0  # metres: no person spans more; a rig that does is in centimetres
 _EPS = 1e-6
 
 
@@ -66,15 +67,16 @@ class FrameDriver:
             raise UserError("Pick a partner armature in the ReMoGen panel")
         if st.partner == st.ego:
             raise UserError("The partner and the ego are the same armature; pick another partner")
+        _check_in_scene(scene, st.ego, "Ego")
         _check_finite_transform(st.ego, "Ego")
         self.scene_name = scene.name
         self.writer = rig.EgoWriter(st.ego)
-        self.reader = self._make_reader(st)
+        self.reader = self._make_reader(scene, st)
         self.model = model if model is not None else get_model()
         self.dt = 1.0 / float(getattr(self.model, "fps", 1.0 / MODEL_DT))   # seconds per model frame
         rt = runtime()
         self.session = rt.ReactionSession(self.model, text=st.text, seed=st.seed, alpha=_alpha(st),
-                                          guidance=st.guidance, fwsr=st.use_fwsr, scene=None)
+                                          guidance=_guidance(st), fwsr=st.use_fwsr, scene=None)
         root, yaw = self.writer.start_pose()
         self.session.reset(root_position=root, yaw=yaw)
         self._applied = (st.text, st.seed, st.alpha_hhi, st.alpha_hsi, st.guidance, st.use_fwsr)
@@ -88,14 +90,18 @@ class FrameDriver:
 
     # ------------------------------------------------------------------ inputs
     @staticmethod
-    def _make_reader(st: Any) -> rig.PartnerReader:
+    def _make_reader(scene: bpy.types.Scene, st: Any) -> rig.PartnerReader:
+        _check_in_scene(scene, st.partner, "Partner")
         _check_finite_transform(st.partner, "Partner")
         if st.bone_map_rig != st.partner.name or len(st.bone_map) == 0:
             rig.fill_bone_map(st, st.partner)
         return rig.PartnerReader(st.partner, rig.bone_map_dict(st))
 
     def _sync_settings(self, st: Any) -> None:
-        """Sliders, text and toggles act on the next model frame."""
+        """Pass slider, text and toggle changes to the session before the next model frame.
+
+        The session applies them from its next segment's diffusion (within 0.8 s of model time); FWSR
+        still reacts to the partner every frame."""
         now = (st.text, st.seed, st.alpha_hhi, st.alpha_hsi, st.guidance, st.use_fwsr)
         if now == self._applied:
             return
@@ -103,24 +109,30 @@ class FrameDriver:
         if st.text != s.text:
             s.text = st.text
         s.alpha = _alpha(st)
-        s.guidance = st.guidance
+        s.guidance = _guidance(st)
         s.fwsr = st.use_fwsr
         # a new seed only matters for a new run (live restarts, bake resets); the session keeps its own
         self._applied = now
 
-    def _partner(self, st: Any, depsgraph: bpy.types.Depsgraph) -> np.ndarray:
+    def _partner(self, scene: bpy.types.Scene, st: Any, depsgraph: bpy.types.Depsgraph) -> np.ndarray:
         try:
             partner = st.partner
         except ReferenceError:
             partner = None
-        if partner is None:
-            raise UserError(f"Partner '{self.reader.name}' was removed; pick a partner and start again")
-        if partner.name != self.reader.name:      # the user picked another partner while running
-            self.reader = self._make_reader(st)
-        elif self.reader.object != partner:
-            self.reader = self._make_reader(st)
+        if partner is None or not _in_scene(scene, partner):
+            # bpy.ops.object.delete only unlinks an object the panel still points at
+            raise UserError(f"Partner '{self.reader.name}' was deleted or is no longer in the scene; "
+                            "pick a partner and start again")
+        if partner.name != self.reader.name or self.reader.object != partner:   # another partner picked
+            self.reader = self._make_reader(scene, st)
         joints = self.reader.read(depsgraph)
-        _check_position(joints, f"Partner '{self.reader.name}'")
+        what = f"Partner '{self.reader.name}'"
+        _check_position(joints, what)
+        # Before the scene grid is built: a rig in centimetres would otherwise be blamed on the scene.
+        span = float(np.ptp(joints, axis=0).max())
+        if span > MAX_PARTNER_SPAN:
+            raise UserError(f"{what} spans {span:.1f} m; it looks like centimetres: scale it by 0.01 "
+                            "(or import it at scale 0.01)")
         return joints
 
     @staticmethod
@@ -137,13 +149,34 @@ class FrameDriver:
         t0 = time.perf_counter()
         st = scene.remogen
         self._sync_settings(st)
-        partner = self._partner(st, depsgraph)
+        if not _in_scene(scene, self.writer.object):
+            raise UserError(f"Ego '{self.writer.name}' was deleted or is no longer in the scene; "
+                            "pick or create an ego and start again")
+        partner = self._partner(scene, st, depsgraph)
         goal = self._goal(st, depsgraph)
         self.session.scene = self.scene_cache.grid(st.scene_collection, depsgraph)
-        frame = self.session.step(partner=partner, goal=goal)
+        frame = self._model_step(partner, goal)
         self.frames.append(frame)
         self.first_index = frame.index - len(self.frames) + 1
         self.step_ms = (time.perf_counter() - t0) * 1e3
+        return frame
+
+    def _model_step(self, partner: np.ndarray, goal: np.ndarray | None) -> Any:
+        """session.step(), stopping at the first non-finite output with its cause named."""
+        index = self.latest_index + 1
+        try:
+            frame = self.session.step(partner=partner, goal=goal)
+        except _RT.RemogenError:
+            # A non-finite pose inside the session can surface as a later input check (the scene
+            # sample's ego transform): name the real cause when there is one.
+            cause = _bad_weights(self.model)
+            if cause is None:
+                raise
+            raise UserError(_nonfinite_message(index, cause)) from None
+        if not all(np.isfinite(a).all() for a in (frame.joints, frame.root, frame.local_rotations)):
+            cause = _bad_weights(self.model) or (f"with guidance {self.session.guidance:g}; lower the guidance "
+                                                 "or check the model file")
+            raise UserError(_nonfinite_message(index, cause))
         return frame
 
     @property
@@ -176,6 +209,10 @@ class FrameDriver:
         q = _RT.qslerp(rot[lo], rot[hi], a[:, None, None])
         return Pose(p, q)
 
+    def last_needed(self, model_time: float) -> int:
+        """The index of the last model frame needed to show `model_time` (the one at or just after it)."""
+        return int(math.ceil(model_time / self.dt - _EPS))
+
     def update(self, scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None,
                model_time: float | None = None, write: bool = True) -> Pose:
         """THE per-frame function: generate the model frames up to the time shown, then pose the ego.
@@ -191,12 +228,12 @@ class FrameDriver:
             if model_time < self.last_time - _EPS or model_time > latest_t + MAX_CATCH_UP:
                 self.anchor = scene_time(scene) - (latest_t + self.dt)
                 model_time = latest_t + self.dt
-        need = int(math.ceil(model_time / self.dt - _EPS))
+        need = self.last_needed(model_time)
         while self.latest_index < need:
             self.step(scene, depsgraph)
         pose = self.pose_at(model_time)
         if write:   # the bake keys all frames at the end instead
-            self.writer.write(pose.pelvis, pose.local_rotations)
+            self._write(pose)
         self.last_time = model_time
         self.update_ms = (time.perf_counter() - t0) * 1e3
         return pose
@@ -207,8 +244,53 @@ class FrameDriver:
         self.anchor -= max(0.0, min(seconds, MAX_CATCH_UP))
         return self.update(scene, depsgraph)
 
+    def show_latest(self) -> None:
+        """Pose the ego again as the last update() did (after something else posed it)."""
+        if self.frames:
+            self._write(self.pose_at(self.last_time))
+
+    def _write(self, pose: Pose) -> None:
+        loc, rot = self.writer.pose_channels(pose.pelvis, pose.local_rotations)
+        if not (np.isfinite(loc).all() and np.isfinite(rot).all()):   # never a NaN on the rig
+            raise UserError(f"Ego '{self.writer.name}': its pose at model frame {self.latest_index} is not "
+                            "finite and was not written; check the ego's transform")
+        self.writer.write_channels(loc, rot)
+
     def restore_rest(self) -> None:
         self.writer.write_rest()
+
+
+def _in_scene(scene: bpy.types.Scene, ob: bpy.types.Object) -> bool:
+    try:
+        return scene.objects.get(ob.name) == ob
+    except ReferenceError:
+        return False
+
+
+def _check_in_scene(scene: bpy.types.Scene, ob: bpy.types.Object, what: str) -> None:
+    if not _in_scene(scene, ob):
+        raise UserError(f"{what} was deleted or is not in scene '{scene.name}'; pick one that is")
+
+
+def _bad_weights(model: Any) -> str | None:
+    """The cause when the model's weights are not all finite, else None."""
+    import torch
+    if all(torch.isfinite(t).all() for t in model.state_dict().values() if t.is_floating_point()):
+        return None
+    return ("the model file has NaN or infinite weights; pick another model file in the add-on preferences "
+            "or train it again")
+
+
+def _nonfinite_message(index: int, cause: str) -> str:
+    return f"The model produced non-finite joints at model frame {index} ({cause}); nothing was written"
+
+
+def _guidance(st: Any) -> float:
+    """The guidance setting; a file saved before the limit existed may hold any value."""
+    g = float(st.guidance)
+    if not 0.0 <= g <= GUIDANCE_MAX:
+        raise UserError(f"Guidance {g:g} is out of range: set it between 0 and {GUIDANCE_MAX:g}")
+    return g
 
 
 def _alpha(st: Any) -> dict[str, float]:
@@ -216,6 +298,7 @@ def _alpha(st: Any) -> dict[str, float]:
 
 
 def _check_position(p: np.ndarray, what: str) -> None:
+    # Blender clamps inf to float32 max, which passes a finiteness check and overflows later: bound it too.
     if not np.isfinite(p).all() or np.abs(p).max() > _RT.MAX_COORD:
         raise UserError(f"{what} has a NaN, infinite or far-off position (beyond {_RT.MAX_COORD:g} m); "
                         "fix its transform or animation")

@@ -3,7 +3,8 @@
 This is plain Python state so it works without a window: `remogen.live_start` run from a script or a
 background process follows `scene.frame_set()` through a frame_change_post handler; started from the UI
 (invoke) the modal operator adds a timer that also keeps the ego living while the timeline stands still.
-Any error, Stop, Esc, or loading another file ends it and puts the ego back in its rest pose.
+Any error, Stop, Esc, or loading another file ends it and puts the ego back as it was before Live (its
+pose and its own action). A save while Live runs writes the ego as it was before Live, too.
 """
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ from typing import Any
 import bpy
 from bpy.app.handlers import persistent
 
-from ._runtime import UserError, remogen_errors
+from ._runtime import error_line
+from .ego_state import HeldAction, PoseSnapshot
 from .frame import FrameDriver, scene_time
 
 
@@ -23,8 +25,9 @@ class LiveState:
         self.scene_name = scene.name
         self.last_scene_time = scene_time(scene)
         self.last_wall = time.perf_counter()
-        self.saved_action: tuple[Any, Any] | None = None
-        self.modal = False    # a modal operator with a timer is attached (UI only)
+        ego = driver.writer.object
+        self.pose_before = PoseSnapshot.take(ego)
+        self.action_before = HeldAction(ego)
 
 
 _state: LiveState | None = None
@@ -58,44 +61,33 @@ def start(context: bpy.types.Context) -> LiveState:
     scene = context.scene
     driver = FrameDriver(scene)
     st = LiveState(driver, scene)
-    ego = driver.writer.object
-    ad = ego.animation_data
-    if ad is not None and ad.action is not None:
-        # An action on the ego would overwrite the live pose on every frame; it comes back on stop.
-        st.saved_action = (ad.action, getattr(ad, "action_slot", None))
-        ad.action = None
+    # An action on the ego would overwrite the live pose on every frame; it comes back on stop.
+    st.action_before.take_off(driver.writer.object)
     _state = st
     _add_handlers()
     try:
         driver.update(scene, context.evaluated_depsgraph_get())
     except BaseException as exc:
-        if isinstance(exc, remogen_errors()):
-            stop(str(exc))
-        else:
-            stop(f"{type(exc).__name__}: {exc}")
+        stop(error_line(exc))
         raise
     _message = "Live running"
     return st
 
 
 def stop(reason: str = "Stopped") -> None:
-    """End live: handlers off, the ego back at rest, its action (if any) back in place."""
+    """End live: handlers off, the ego back as it was before Live (pose and action)."""
     global _state, _message
     st, _state = _state, None
     _remove_handlers()
     _message = reason
-    if st is None:
-        return
-    try:
-        st.driver.restore_rest()
-        if st.saved_action is not None:
-            ob = st.driver.writer.object
-            ad = ob.animation_data or ob.animation_data_create()
-            ad.action = st.saved_action[0]
-            if st.saved_action[1] is not None and hasattr(ad, "action_slot"):
-                ad.action_slot = st.saved_action[1]
-    except ReferenceError:   # the file was closed or the ego deleted: nothing to restore
-        pass
+    if st is not None:
+        _put_ego_back(st)
+
+
+def _put_ego_back(st: LiveState) -> None:
+    ego = st.driver.writer.object
+    st.pose_before.restore(ego)
+    st.action_before.put_back(ego)
 
 
 def tick(context: bpy.types.Context) -> None:
@@ -122,14 +114,11 @@ def _guarded(fn) -> None:
     """Run a live update; a predictable error stops live with its one-line message, others with their type."""
     try:
         fn()
-    except remogen_errors() as exc:
-        stop(f"Live stopped: {exc}")
-        print(f"ReMoGen: {_message}")
     except ReferenceError:
         stop("Live stopped: the partner or the ego was deleted")
         print(f"ReMoGen: {_message}")
-    except Exception as exc:  # anything else must not leave a half-running session behind
-        stop(f"Live stopped: {type(exc).__name__}: {exc}")
+    except Exception as exc:  # noqa: BLE001 - nothing may leave a half-running session behind
+        stop(f"Live stopped: {error_line(exc)}")
         print(f"ReMoGen: {_message}")
 
 
@@ -158,8 +147,25 @@ def _on_load(*_args: Any) -> None:
         stop("Live stopped: another file was loaded")
 
 
+def _on_save_pre(*_args: Any) -> None:
+    """The file gets the ego as it was before Live: its own action assigned, its pose."""
+    if _state is not None:
+        _put_ego_back(_state)
+
+
+def _on_save_post(*_args: Any) -> None:
+    """Back to live: the action off again, the live pose shown again."""
+    if _state is not None:
+        _guarded(_resume_after_save)
+
+
+def _resume_after_save() -> None:
+    _state.action_before.take_off(_state.driver.writer.object)
+    _state.driver.show_latest()
+
+
 _HANDLERS = (("frame_change_post", _on_frame_change), ("depsgraph_update_post", _on_depsgraph_update),
-             ("load_pre", _on_load))
+             ("load_pre", _on_load), ("save_pre", _on_save_pre), ("save_post", _on_save_post))
 
 
 def _add_handlers() -> None:
@@ -175,9 +181,3 @@ def _remove_handlers() -> None:
         while fn in lst:
             lst.remove(fn)
 
-
-def guard_user_error(exc: BaseException) -> str:
-    """The one line to show for an exception raised by start()."""
-    if isinstance(exc, (UserError,) + remogen_errors()):
-        return str(exc)
-    return f"{type(exc).__name__}: {exc}"

@@ -3,13 +3,14 @@ import bpy
 from bpy.props import IntProperty
 
 from . import live, rig
-from ._runtime import UserError, remogen_errors
+from ._runtime import UserError, error_line, remogen_errors
 
 TIMER_INTERVAL = 1.0 / 60.0
+BAKE_TICK_SECONDS = 0.1    # model frames generated per timer tick of a UI bake: the UI stays responsive
 
 
 def _fail(op: bpy.types.Operator, exc: BaseException) -> set[str]:
-    op.report({'ERROR'}, str(exc) if isinstance(exc, remogen_errors()) else f"{type(exc).__name__}: {exc}")
+    op.report({'ERROR'}, error_line(exc))
     return {'CANCELLED'}
 
 
@@ -66,7 +67,6 @@ class REMOGEN_OT_live_start(bpy.types.Operator):
         self._timer = wm.event_timer_add(TIMER_INTERVAL, window=context.window)
         wm.modal_handler_add(self)
         self._state = live.state()
-        self._state.modal = True
         return {'RUNNING_MODAL'}
 
     def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
@@ -126,8 +126,59 @@ class REMOGEN_OT_live_stop(bpy.types.Operator):
         return {'FINISHED'}
 
 
+class ModalBake:
+    """A bake run a chunk of model frames per timer tick, with progress in the status bar and the cursor.
+
+    The operator's modal() only forwards events here, so the stepping and cancelling work (and are
+    tested) without a window.
+    """
+
+    def __init__(self, context: bpy.types.Context, job, timer: bool = False) -> None:
+        self.job = job
+        self.timer = None
+        wm = context.window_manager
+        wm.progress_begin(0, job.total)
+        if timer:
+            self.timer = wm.event_timer_add(TIMER_INTERVAL, window=context.window)
+        self._show(context)
+
+    def _show(self, context: bpy.types.Context) -> None:
+        context.window_manager.progress_update(self.job.done)
+        if context.workspace is not None:
+            context.workspace.status_text_set(
+                f"ReMoGen bake: {self.job.done:,} / {self.job.total:,} model frames "
+                f"({100 * self.job.done // max(self.job.total, 1)} %), Esc or right-click to cancel")
+
+    def tick(self, context: bpy.types.Context, seconds: float = BAKE_TICK_SECONDS) -> bool:
+        """Generate for about `seconds`; True when every model frame is generated. Errors end the bake."""
+        try:
+            done = self.job.step(seconds=seconds)
+        except BaseException:
+            self.close(context)
+            raise
+        self._show(context)
+        return done
+
+    def finish(self, context: bpy.types.Context):
+        """Key the frames (the bake's only change) and end; returns the BakeResult."""
+        try:
+            return self.job.finish()
+        finally:
+            self.close(context)
+
+    def cancel(self, context: bpy.types.Context) -> None:
+        """Stop: the ego, its action and the scene stay exactly as before the bake."""
+        self.job.cancel()
+        self.close(context)
+
+    def close(self, context: bpy.types.Context) -> None:
+        context.window_manager.progress_end()
+        cleanup_modal(context, self.timer)
+        self.timer = None
+
+
 class REMOGEN_OT_bake(bpy.types.Operator):
-    """Generate the frame range for the seed and key it into a new action on the ego"""
+    """Generate the frame range for the seed and key it into a new action on the ego (Esc cancels)"""
     bl_idname = "remogen.bake"
     bl_label = "Bake"
     bl_options = {'REGISTER', 'UNDO'}
@@ -135,23 +186,59 @@ class REMOGEN_OT_bake(bpy.types.Operator):
     frame_start: IntProperty(name="Start", default=-1, description="-1: the scene's start")
     frame_end: IntProperty(name="End", default=-1, description="-1: the scene's end")
 
-    def execute(self, context: bpy.types.Context) -> set[str]:
-        from .bake import bake
+    _run = None     # the ModalBake of an invoked (UI) bake
+
+    def _job(self, context: bpy.types.Context):
+        from .bake import BakeJob
         if live.is_running():
             live.stop("Stopped for baking")
         scene = context.scene
         f0 = scene.frame_start if self.frame_start < 0 else self.frame_start
         f1 = scene.frame_end if self.frame_end < 0 else self.frame_end
-        wm = context.window_manager
-        wm.progress_begin(0, 100)
+        return BakeJob(scene, f0, f1)
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        # Scripts and background runs: the whole bake now, with the progress cursor.
         try:
-            res = bake(scene, f0, f1, progress=lambda k, n: wm.progress_update(int(100 * k / max(n, 1))))
+            run = ModalBake(context, self._job(context))
+            while not run.tick(context):
+                pass
+            res = run.finish(context)
         except (ReferenceError, *remogen_errors()) as exc:
             return _fail(self, exc)
-        finally:
-            wm.progress_end()
+        return self._report(res)
+
+    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        try:
+            self._run = ModalBake(context, self._job(context), timer=True)
+        except (ReferenceError, *remogen_errors()) as exc:
+            return _fail(self, exc)
+        context.window_manager.modal_handler_add(self)
+        return {'RUNNING_MODAL'}
+
+    def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        run = self._run
+        if event.type in {'ESC', 'RIGHTMOUSE'} and event.value == 'PRESS':
+            run.cancel(context)
+            self.report({'INFO'}, "Bake cancelled; nothing was changed")
+            return {'CANCELLED'}
+        if event.type != 'TIMER':
+            return {'RUNNING_MODAL'}     # the scene must not change under the bake: other events wait
+        try:
+            if not run.tick(context):
+                return {'RUNNING_MODAL'}
+            res = run.finish(context)
+        except (ReferenceError, *remogen_errors()) as exc:
+            return _fail(self, exc)
+        return self._report(res)
+
+    def cancel(self, context: bpy.types.Context) -> None:   # Blender cancels modals on file load / quit
+        if self._run is not None:
+            self._run.cancel(context)
+
+    def _report(self, res) -> set[str]:
         kept = f"; previous action '{res.replaced}' kept" if res.replaced else ""
-        self.report({'INFO'}, f"Baked frames {f0}-{f1} ({res.model_frames} model frames, {res.model_fps:.0f}/s) "
+        self.report({'INFO'}, f"Baked {res.frames} frames ({res.model_frames} model frames, {res.model_fps:.0f}/s) "
                               f"into '{res.action.name}'{kept}")
         return {'FINISHED'}
 

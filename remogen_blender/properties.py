@@ -3,6 +3,12 @@ import bpy
 from bpy.props import (BoolProperty, CollectionProperty, FloatProperty, IntProperty, PointerProperty,
                        StringProperty)
 
+# Hard limits (Blender clamps to them): classifier-free guidance far beyond the trained range only makes
+# the output blow up (1e30 gives NaN joints); the seed is a 32-bit property.
+GUIDANCE_MAX = 20.0
+SEED_MAX = 2**31 - 1
+_GUIDANCE_HELP = f"Classifier-free guidance on the text (0 to {GUIDANCE_MAX:g})"
+
 
 def _is_armature(_self, ob: bpy.types.Object) -> bool:
     return ob.type == 'ARMATURE'
@@ -43,9 +49,11 @@ class RemogenSettings(bpy.types.PropertyGroup):
         name="Scene (HSI)", default=1.0, min=0.0, max=1.0, subtype='FACTOR',
         description="How strongly the ego reacts to the scene meshes and the goal")
     guidance: FloatProperty(
-        name="Guidance", default=5.0, min=0.0, soft_max=10.0, description="Classifier-free guidance on the text")
+        name="Guidance", default=5.0, min=0.0, max=GUIDANCE_MAX, soft_max=10.0,
+        description=_GUIDANCE_HELP)
     seed: IntProperty(
-        name="Seed", default=0, min=0, description="Same seed and inputs give the same motion")
+        name="Seed", default=0, min=0, max=SEED_MAX,
+        description="Same seed and inputs give the same motion")
     use_fwsr: BoolProperty(
         name="FWSR", default=True, description="Frame-wise segment refinement: react within a frame")
 

@@ -99,15 +99,26 @@ def test_slide_mode_runs(tiny_model):
 
 
 def test_settings_change_between_steps(tiny_model):
-    s = ReactionSession(tiny_model, text="walk", seed=0)
-    s.reset()
-    for i in range(20):
-        if i == 5:
-            s.text, s.alpha, s.guidance, s.fwsr = "wave", {"hhi": 0.5, "hsi": 0.0}, 2.0, False
-        if i == 12:
-            s.fwsr = True
-        s.step()
-    assert s.frame_index == 20
+    """Text, alpha, guidance and FWSR set mid-run are taken: the frames before the change are those of an
+    unchanged run, the frames after it differ."""
+    def run(change: bool):
+        s = ReactionSession(tiny_model, text="walk", seed=0)
+        s.reset()
+        out = []
+        for i in range(20):
+            if change and i == 5:
+                s.text, s.alpha, s.guidance, s.fwsr = "wave", {"hhi": 0.5, "hsi": 0.0}, 2.0, False
+            if change and i == 12:
+                s.fwsr = True
+            out.append(s.step().joints)
+        return s, np.stack(out)
+
+    s, changed = run(True)
+    _, same = run(False)
+    assert (s.text, s.alpha, s.guidance, s.fwsr) == ("wave", {"hhi": 0.5, "hsi": 0.0}, 2.0, True)
+    assert np.array_equal(changed[:5], same[:5])
+    assert np.abs(changed[6:] - same[6:]).max() > 1e-4
+    assert np.isfinite(changed).all()
 
 
 def test_reset_from_frame(tiny_model):

@@ -121,3 +121,16 @@ def action_fcurves(action) -> list:
         return [fc for layer in action.layers for strip in layer.strips for bag in strip.channelbags
                 for fc in bag.fcurves]
     return list(action.fcurves)
+
+
+def poison_weights(model) -> None:
+    """Fill every weight of a loaded model with NaN in place (a damaged model file, as far as output goes)."""
+    import torch
+    with torch.no_grad():
+        for p in model.parameters():
+            p.fill_(float("nan"))
+
+
+def ego_pose(ego) -> np.ndarray:
+    """(bones, 7) pose-bone quaternions and locations, to compare before and after."""
+    return np.array([tuple(pb.rotation_quaternion) + tuple(pb.location) for pb in ego.pose.bones])

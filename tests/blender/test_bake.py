@@ -97,7 +97,8 @@ def _snapshot():
 
 
 @pytest.mark.parametrize("case", ["no_partner", "non_humanoid", "partner_nan", "goal_nan", "empty_collection",
-                                  "huge_collection", "missing_model", "foreign_model", "empty_range"])
+                                  "huge_collection", "missing_model", "foreign_model", "empty_range",
+                                  "guidance_out_of_range"])
 def test_bad_inputs_leave_file_unchanged(fresh, case, tmp_path, monkeypatch):
     import scenes
     from remogen_blender import scene as scene_mod
@@ -132,6 +133,9 @@ def test_bad_inputs_leave_file_unchanged(fresh, case, tmp_path, monkeypatch):
         torch.save({"weights": torch.zeros(3)}, p)
         monkeypatch.setenv("REMOGEN_MODEL_FILE", str(p))
         match = "not a ReMoGen model file"
+    elif case == "guidance_out_of_range":
+        st["guidance"] = 1e30          # as stored in a file saved before the property had a limit
+        match = "Guidance 1e+30 is out of range: set it between 0 and 20"
     else:
         kwargs = {"frame_start": 10, "frame_end": 5}
         match = "is empty"
@@ -143,31 +147,38 @@ def test_bad_inputs_leave_file_unchanged(fresh, case, tmp_path, monkeypatch):
     assert _snapshot() == before
 
 
-def test_baked_action_replays_the_live_motion(fresh):
-    """At 10 fps every scene frame is one model frame: the baked keys must reproduce the live poses (< 1 mm)."""
+@pytest.mark.parametrize("fps", [10, 24])
+def test_baked_action_replays_the_live_motion(fresh, fps):
+    """The baked keys reproduce what Live shows at every scene frame (< 1 mm); at 24 fps most scene frames
+    fall between two model frames, so the bake's interpolation must be Live's."""
     from remogen_blender import live, rig
-    d = _scene(fps=10, frames=(1, 20))
+    n = 2 * fps
+    d = _scene(fps=fps, frames=(1, n))
     scene = bpy.context.scene
     ego = d["ego"]
     assert bpy.ops.remogen.bake() == {'FINISHED'}
-    w = rig.EgoWriter(ego)
-    baked = []
-    for f in range(1, 21):
-        scene.frame_set(f)
-        bpy.context.view_layer.update()
-        baked.append(w.world_heads(bpy.context.evaluated_depsgraph_get()))
     act = ego.animation_data.action
-    ego.animation_data.action = None
-    scene.frame_set(1)
-    bpy.ops.remogen.live_start()
-    lived = []
-    for f in range(1, 21):
-        scene.frame_set(f)
+    w = rig.EgoWriter(ego)
+
+    def heads():
         bpy.context.view_layer.update()
-        lived.append(w.world_heads(bpy.context.evaluated_depsgraph_get()))
+        return w.world_heads(bpy.context.evaluated_depsgraph_get())
+
+    baked = []
+    for f in range(1, n + 1):
+        scene.frame_set(f)
+        baked.append(heads())
+    scene.frame_set(1)
+    bpy.ops.remogen.live_start()        # takes the baked action off the ego while it runs
+    lived = []
+    for f in range(1, n + 1):
+        scene.frame_set(f)
+        lived.append(heads())
+    assert live.is_running(), live.message()
     live.stop()
     assert np.abs(np.array(baked) - np.array(lived)).max() < 1e-3
-    assert act.users >= 0
+    assert np.abs(np.array(lived[-1]) - np.array(lived[0])).max() > 1e-2     # the ego did move
+    assert ego.animation_data.action == act                                   # and got its action back
 
 
 def test_continuous_quaternions():
@@ -181,3 +192,123 @@ def test_continuous_quaternions():
     out = _continuous(q * signs)
     assert np.all(np.sum(out[1:] * out[:-1], axis=-1) > 0)
     assert np.allclose(np.abs(np.sum(out * q, axis=-1)), 1.0)
+
+
+def test_nan_weights_stop_bake_and_change_nothing(fresh):
+    """With a scene collection the NaN used to be blamed on the ego's transform."""
+    import scenes
+    from remogen_blender import _runtime
+    _scene(frames=(1, 24))
+    assert bpy.context.scene.remogen.scene_collection is not None
+    scenes.poison_weights(_runtime.get_model())
+    before = _snapshot()
+    with pytest.raises(RuntimeError) as exc:
+        bpy.ops.remogen.bake()
+    msg = str(exc.value).strip()
+    assert "non-finite joints at model frame 0" in msg and "NaN or infinite weights" in msg, msg
+    assert "ego-to-world" not in msg and "\n" not in msg
+    assert _snapshot() == before
+
+
+def test_bake_stops_at_the_first_non_finite_frame(fresh, monkeypatch):
+    """Whatever the cause, a non-finite model frame stops the bake there and nothing is keyed."""
+    import scenes
+    from model_runtime import ReactionSession
+    from remogen_blender.bake import UserError, bake
+    _scene(frames=(1, 24))
+    real_step = ReactionSession.step
+    made = []
+
+    def step(self, *a, **kw):
+        f = real_step(self, *a, **kw)
+        made.append(f.index)
+        if f.index == 5:
+            f.local_rotations[3, 1] = float("inf")
+        return f
+
+    monkeypatch.setattr(ReactionSession, "step", step)
+    before = _snapshot()
+    with pytest.raises(UserError, match="non-finite joints at model frame 5 .*guidance"):
+        bake(bpy.context.scene)
+    assert made[-1] == 5 and _snapshot() == before
+    assert np.isfinite(scenes.ego_pose(bpy.context.scene.remogen.ego)).all()
+
+
+def test_bake_bounds_model_frames_not_scene_frames(fresh):
+    """12 scene frames at 1/1000 fps are 11,000 s of motion: refused before any model frame is made."""
+    from remogen_blender.bake import MAX_MODEL_SECONDS
+    _scene(frames=(1, 12))
+    scene = bpy.context.scene
+    scene.render.fps, scene.render.fps_base = 1, 1000.0
+    before = _snapshot()
+    with pytest.raises(RuntimeError) as exc:
+        bpy.ops.remogen.bake()
+    msg = str(exc.value)
+    limit = int(MAX_MODEL_SECONDS * 10)
+    assert "110,001 model frames" in msg and f"limit is {limit:,}" in msg, msg
+    assert _snapshot() == before
+
+
+def test_bake_cancel_changes_nothing(fresh):
+    """Scripts: cancelled() stops the bake between model frames; the ego, its action and the frame stay."""
+    from remogen_blender.bake import BakeCancelled, bake
+    d = _scene(frames=(1, 48))
+    scene = bpy.context.scene
+    user = bpy.data.actions.new("UserAction")
+    d["ego"].animation_data_create().action = user
+    scene.frame_set(7)
+    before = _snapshot()
+    seen = []
+    with pytest.raises(BakeCancelled, match="after 4 of 21 model frames"):
+        bake(scene, progress=lambda k, n: seen.append((k, n)), cancelled=lambda: len(seen) >= 4)
+    assert seen == [(1, 21), (2, 21), (3, 21), (4, 21)]
+    assert _snapshot() == before and not user.use_fake_user
+
+
+def test_modal_bake_steps_in_chunks_and_esc_cancels(fresh):
+    """What the UI operator runs per timer tick: chunks with progress; cancel leaves the file as it was."""
+    from remogen_blender.bake import BakeJob
+    from remogen_blender.operators import ModalBake
+    d = _scene(frames=(1, 48))
+    before = _snapshot()
+    run = ModalBake(bpy.context, BakeJob(bpy.context.scene))
+    assert run.tick(bpy.context, seconds=0.0) is False          # one model frame per tick at the least
+    assert run.job.done == 1 and run.job.total == 21
+    run.tick(bpy.context, seconds=0.0)
+    assert run.job.done == 2
+    run.cancel(bpy.context)
+    assert _snapshot() == before
+    # run to the end: the same keys as a bake in one go
+    run = ModalBake(bpy.context, BakeJob(bpy.context.scene))
+    while not run.tick(bpy.context, seconds=0.05):
+        pass
+    res = run.finish(bpy.context)
+    chunked = _curves(res.action)
+    assert bpy.ops.remogen.bake() == {'FINISHED'}
+    whole = _curves(d["ego"].animation_data.action)
+    assert chunked.keys() == whole.keys() and all(np.array_equal(chunked[k], whole[k]) for k in whole)
+
+
+def test_centimetre_partner_is_named_before_the_scene(fresh):
+    """A rig and props imported in centimetres: the partner's scale is the message, not the scene's size."""
+    d = _scene(frames=(1, 12))
+    d["partner"].animation_data_clear()
+    d["partner"].scale = (100.0, 100.0, 100.0)
+    d["props"].objects["Table"].scale = (100.0, 100.0, 100.0)
+    before = _snapshot()
+    with pytest.raises(RuntimeError, match="looks like centimetres: scale it by 0.01"):
+        bpy.ops.remogen.bake()
+    assert _snapshot() == before
+
+
+def test_multi_line_runtime_message_is_reported_as_one_line(fresh, monkeypatch):
+    """A runtime message that spans lines (a goal array printed whole) reaches the user as one line."""
+    from remogen_blender import frame
+    _scene(frames=(1, 12))
+    monkeypatch.setattr(frame.FrameDriver, "_goal", staticmethod(lambda st, dg: np.zeros((4, 3))))
+    before = _snapshot()
+    with pytest.raises(RuntimeError) as exc:
+        bpy.ops.remogen.bake()
+    msg = str(exc.value).strip()
+    assert "goal" in msg and "\n" not in msg, msg
+    assert _snapshot() == before

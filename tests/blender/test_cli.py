@@ -1,6 +1,8 @@
 """The headless command: cli_main() in process (what `blender -c remogen` calls) and the bpy-module batch entry."""
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -86,3 +88,47 @@ def test_batch_module_in_subprocess(fresh, tmp_path, tiny_model_file):
     assert "remogen: baked frames 1-10" in r.stdout
     name, n = _keys(out)
     assert n == 10 * (22 * 4 + 3)
+
+
+@pytest.mark.parametrize("sig,code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_batch_stops_on_signal_without_output(fresh, tmp_path, tiny_model_file, sig, code):
+    """Ctrl-C / SIGTERM mid-bake: the process stops between model frames, exits 130 / 143, writes nothing."""
+    src, out = tmp_path / "scene.blend", tmp_path / "out.blend"
+    _saved_scene(fresh, src, with_settings=True)
+    env = subprocess_env(ROOT)
+    p = subprocess.Popen([sys.executable, "-m", "remogen_blender.batch", "bake", "--blend", str(src),
+                          "--frames", "1", "9600", "--model", str(tiny_model_file), "--output", str(out)],
+                         cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for line in p.stdout:                 # wait until the bake is under way
+            if line.startswith("remogen: baking"):
+                break
+        p.send_signal(sig)
+        _, err = p.communicate(timeout=120)
+    finally:
+        p.kill()
+    assert p.returncode == code, err[-2000:]
+    assert "no output file was written" in err.strip().splitlines()[-1]
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["scene.blend"]     # no output, no partial file
+
+
+@pytest.mark.parametrize("argv,match", [
+    (["--seed", "99999999999"], "--seed must be between 0 and 2147483647"),
+    (["--seed", "-1"], "--seed must be between 0 and 2147483647"),
+    (["--seed", "abc"], "argument --seed: invalid int value: 'abc'"),
+    (["--alpha-hhi", "abc"], "argument --alpha-hhi: invalid float value: 'abc'"),
+    (["--alpha-hsi", "nan"], "between 0 and 1"),
+    (["--guidance", "1e30"], "--guidance must be between 0 and 20"),
+    (["--guidance", "inf"], "--guidance must be between 0 and 20"),
+    (["--frames", "1"], "argument --frames: expected 2 arguments"),
+])
+def test_cli_bad_values_are_one_line(fresh, tmp_path, capsys, argv, match):
+    from remogen_blender.cli import cli_main
+    src = tmp_path / "scene.blend"
+    _saved_scene(fresh, src, with_settings=True)
+    out = tmp_path / "x.blend"
+    rc = cli_main(["bake", "--blend", str(src), *argv, "--output", str(out)])
+    assert rc in (1, 2)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "error:" in err[0] and match in err[0], err
+    assert not out.exists()

@@ -115,12 +115,25 @@ def test_errors_at_start_are_one_line(fresh):
 
 
 def test_modal_cleanup_is_idempotent(fresh):
+    """The timer is removed and the status text cleared; a second call (or a stale timer) raises nothing."""
+    from types import SimpleNamespace
     from remogen_blender.operators import cleanup_modal
-    wm = fresh.window_manager
-    timer = wm.event_timer_add(0.5, window=fresh.window)
-    cleanup_modal(fresh, timer)
-    cleanup_modal(fresh, timer)
-    cleanup_modal(fresh, None)
+    removed, status = [], []
+
+    def remove(timer):
+        if timer in removed:
+            raise ValueError("timer not found")     # what Blender says for a timer already removed
+        removed.append(timer)
+
+    ctx = SimpleNamespace(window_manager=SimpleNamespace(event_timer_remove=remove),
+                          workspace=SimpleNamespace(status_text_set=status.append))
+    timer = object()
+    cleanup_modal(ctx, timer)
+    cleanup_modal(ctx, timer)
+    cleanup_modal(ctx, None)
+    assert removed == [timer] and status == [None, None, None]
+    real = fresh.window_manager.event_timer_add(0.5, window=fresh.window)
+    cleanup_modal(fresh, real)                      # the real window manager takes it too
 
 
 def test_timer_tick_keeps_ego_living_while_timeline_stands_still(fresh):
@@ -150,9 +163,9 @@ def test_ego_deleted_mid_run_stops_cleanly(fresh):
 def test_imported_cmu_bvh_partner(fresh):
     """A real rig: Blender's BVH importer on a shared CMU clip (DAZ names) is mapped and drives live."""
     import addon_utils
-    from pathlib import Path
+    from paths import SHARED
     from remogen_blender import live, rig
-    bvh = Path(__file__).resolve().parents[3] / "shared" / "data" / "cmu" / "daz_friendly_120fps" / "05" / "05_01.bvh"
+    bvh = SHARED / "data" / "cmu" / "daz_friendly_120fps" / "05" / "05_01.bvh"
     if not bvh.is_file():
         pytest.skip("shared CMU data not available")
     addon_utils.enable("io_anim_bvh")
@@ -182,3 +195,141 @@ def test_imported_cmu_bvh_partner(fresh):
         assert len(bpy.data.actions) == n_actions
     finally:
         addon_utils.disable("io_anim_bvh")
+
+
+def _give_action(ego, name="UserWalk"):
+    """A user action on the ego: a pelvis key at frames 1 and 20."""
+    act = bpy.data.actions.new(name)
+    ego.animation_data_create().action = act
+    pb = ego.pose.bones["pelvis"]
+    for f, z in ((1, 0.0), (20, 0.3)):
+        pb.location = (0.0, 0.0, z)
+        pb.keyframe_insert("location", frame=f)
+    pb.location = (0.0, 0.0, 0.0)
+    return act
+
+
+def _key_count(act) -> int:
+    import scenes
+    return sum(len(fc.keyframe_points) for fc in scenes.action_fcurves(act))
+
+
+def test_save_during_live_keeps_the_ego_action(fresh, tmp_path):
+    import scenes
+    from remogen_blender import live
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    d = scenes.demo_scene(bpy.context)
+    ego, scene = d["ego"], bpy.context.scene
+    ego_name = ego.name
+    act = _give_action(ego)
+    n_keys = _key_count(act)
+    scene.frame_set(1)
+    before = scenes.ego_pose(ego)
+    assert bpy.ops.remogen.live_start() == {'FINISHED'}
+    for f in range(2, 12):
+        scene.frame_set(f)
+    assert ego.animation_data.action is None and act.use_fake_user      # off the ego, kept safe
+    path = str(tmp_path / "during_live.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    # Live goes on after the save: the action is off the ego again and the live pose is shown
+    assert live.is_running(), live.message()
+    assert ego.animation_data.action is None
+    assert not np.allclose(scenes.ego_pose(ego), before, atol=1e-4)
+    scene.frame_set(12)
+    assert live.is_running(), live.message()
+    bpy.ops.wm.open_mainfile(filepath=path)
+    ego = bpy.data.objects[ego_name]
+    act = bpy.data.actions.get("UserWalk")
+    assert act is not None and _key_count(act) == n_keys
+    assert ego.animation_data.action == act and not act.use_fake_user   # as before Live
+    bpy.context.scene.frame_set(1)
+    assert np.allclose(scenes.ego_pose(ego), before, atol=1e-6)          # the action drives it again
+
+
+def test_stop_gives_back_action_and_pose(fresh):
+    import scenes
+    from remogen_blender import live
+    d, _ = _run(fresh, [1])
+    live.stop()
+    ego = d["ego"]
+    act = _give_action(ego)
+    ego.pose.bones["left_knee"].rotation_quaternion = (0.9, 0.3, 0.0, 0.0)   # a pose by hand, no key
+    before = scenes.ego_pose(ego)
+    bpy.ops.remogen.live_start()
+    for f in range(2, 10):
+        bpy.context.scene.frame_set(f)
+    assert live.is_running()
+    bpy.ops.remogen.live_stop()
+    assert ego.animation_data.action == act and not act.use_fake_user
+    bpy.context.scene.frame_set(1)            # the action drives the pelvis; the knee is as posed by hand
+    assert np.allclose(scenes.ego_pose(ego), before, atol=1e-6)
+
+
+@pytest.mark.parametrize("with_scene", [True, False])
+def test_nan_weights_stop_live_at_the_first_bad_frame(fresh, with_scene):
+    """A model turning out NaN mid-run: Live stops naming the cause (not the scene sample's transform)."""
+    import scenes
+    from remogen_blender import live
+    d, _ = _run(fresh, range(1, 4))
+    scene = bpy.context.scene
+    if not with_scene:
+        scene.remogen.scene_collection = None
+    ego = d["ego"]
+    scenes.poison_weights(live.state().driver.model)
+    for f in range(4, 48):
+        scene.frame_set(f)
+        assert np.isfinite(scenes.ego_pose(ego)).all()          # never a NaN on the rig
+        if not live.is_running():
+            break
+    msg = live.message()
+    assert not live.is_running()
+    assert "non-finite joints at model frame" in msg and "NaN or infinite weights" in msg, msg
+    assert "ego-to-world" not in msg and "\n" not in msg
+    assert np.allclose(scenes.ego_pose(ego)[:, :4], (1.0, 0.0, 0.0, 0.0))   # back as before Live
+
+
+def test_nan_weights_refused_at_live_start(fresh):
+    import scenes
+    from remogen_blender import _runtime, live
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scenes.demo_scene(bpy.context)
+    scenes.poison_weights(_runtime.get_model())
+    with pytest.raises(RuntimeError, match="non-finite joints at model frame 0 .*NaN or infinite weights"):
+        bpy.ops.remogen.live_start()
+    assert not live.is_running()
+
+
+def test_guidance_is_bounded(fresh):
+    from remogen_blender.properties import GUIDANCE_MAX
+    st = fresh.scene.remogen
+    st.guidance = 1e30
+    assert st.guidance == pytest.approx(GUIDANCE_MAX)
+
+
+def test_partner_deleted_with_the_operator_stops_live(fresh):
+    from remogen_blender import live
+    d, _ = _run(fresh, range(1, 5))
+    partner = d["partner"]
+    for ob in bpy.context.view_layer.objects:
+        ob.select_set(ob == partner)
+    with bpy.context.temp_override(selected_objects=[partner], active_object=partner):
+        assert bpy.ops.object.delete() == {'FINISHED'}
+    bpy.context.scene.frame_set(6)
+    assert not live.is_running()
+    msg = live.message()
+    assert msg.startswith("Live stopped:") and "Partner 'Partner' was deleted" in msg and "\n" not in msg
+    with pytest.raises(RuntimeError, match="Partner was deleted or is not in scene"):
+        bpy.ops.remogen.live_start()
+
+
+def test_an_action_assigned_during_live_is_kept_and_so_is_the_old_one(fresh):
+    from remogen_blender import live
+    d, _ = _run(fresh, [1])
+    live.stop()
+    ego = d["ego"]
+    old = _give_action(ego, "Old")
+    bpy.ops.remogen.live_start()
+    new = bpy.data.actions.new("New")
+    ego.animation_data.action = new
+    live.stop()
+    assert ego.animation_data.action == new and old.use_fake_user     # neither is lost on the next save
