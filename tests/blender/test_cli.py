@@ -1,7 +1,6 @@
 """The headless command: cli_main() in process (what `blender -c remogen` calls) and the bpy-module batch entry."""
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import sys
