@@ -1,6 +1,6 @@
 """The 276-D per-frame motion features (DART layout), canonicalisation and normalisation.
 
-Layout of one frame (all in the segment's canonical frame, see DESIGN.md section 4):
+Layout of one frame (all in the segment's canonical frame; ARCHITECTURE.md describes the frames):
 
 | slice        | size   | what                                             |
 |--------------|--------|--------------------------------------------------|

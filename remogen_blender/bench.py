@@ -7,7 +7,7 @@
   evaluation (frame_set) is timed separately as frame_set_ms.
 - bake_model_fps: model frames per second of a headless bake (frame_set per model frame + keying).
 - voxelise_s: extracting the evaluated triangles of a ~100k-triangle collection and building the grid.
-Targets (issue 4): live tick p50 <= 8 ms with the default model, bake >= 150 model frames/s, voxelisation of
+Targets: live tick p50 <= 8 ms with the default model, bake >= 150 model frames/s, voxelisation of
 100k triangles <= 2 s.
 """
 from __future__ import annotations
@@ -143,4 +143,4 @@ if __name__ == "__main__":
     rc = main(sys.argv[1:])
     sys.stdout.flush()
     sys.stderr.flush()
-    os._exit(rc)   # BLENDER_NOTES §4: never risk the exit hang of the bpy module
+    os._exit(rc)   # the bpy module can hang at interpreter exit with add-on classes registered

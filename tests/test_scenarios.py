@@ -1,4 +1,4 @@
-"""Behaviour of the shipped default model in scripted interaction scenarios (issue 3's acceptance).
+"""Behaviour of the shipped default model in scripted interaction scenarios.
 
 alpha = 0 (prior only) is the contrast that shows the Meta-Interaction Modules do the work.
 """
@@ -23,7 +23,7 @@ pytestmark = pytest.mark.skipif(not DEFAULT_WEIGHTS.exists(), reason="no shipped
 # The partner scenario passes (seeds 0, 1): facing error 26 deg, clearance 0.64 m vs prior-only 85 deg; it
 # needed the pivot-turned clips of data/turns.py (without them 103 vs 89 deg). It does not hang on float
 # rounding: with every weight scaled by 1 + 1e-3 * N(0, 1) (4 draws) it measured 25.7-26.1 deg, 0.64-0.65 m.
-NOT_LEARNED_YET = pytest.mark.xfail(strict=True, reason="shipped weights do not stop at the goal yet (issue 3)")
+NOT_LEARNED_YET = pytest.mark.xfail(strict=True, reason="shipped weights do not stop at the goal yet")
 
 # the partner walks 3 m at 1.2 m/s (2.5 s) and stops at 1 m; we look one second of model time later
 PARTNER_FRAMES = 25 + 10

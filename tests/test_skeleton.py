@@ -19,7 +19,7 @@ def test_fk_reproduces_reference_rest_joints():
 def test_constants_match_the_reference_file():
     path = SHARED / "reference" / "smplx_body22.json"
     if not path.exists():
-        pytest.skip("shared/reference not present")
+        pytest.skip("optional SMPL-X reference file not present")
     ref = json.loads(path.read_text())
     assert tuple(ref["names"]) == sk.JOINT_NAMES
     assert tuple(ref["parents"]) == sk.PARENTS
