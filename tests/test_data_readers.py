@@ -1,7 +1,7 @@
 """Motion readers, retargeting, resampling and captions (model_runtime.data).
 
-Synthetic files are written to tmp_path; real clips come from ../shared/data (read-only) and are
-skipped with a reason when that folder is absent.
+Synthetic files are written to tmp_path; real clips come from the optional test data (tests/paths.py),
+read-only, and are skipped with a reason when it is absent.
 """
 import math
 import warnings
@@ -17,16 +17,14 @@ from model_runtime.data.captions import bandai_caption, caption_for, cmu_caption
 from model_runtime.data.motion import resample_positions
 from model_runtime.errors import InputError
 from model_runtime.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS, REST_JOINTS_ZUP
+from paths import DATA, shared_file
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 J = JOINT_INDEX
 
 
 def shared(rel: str) -> Path:
-    path = DATA / rel
-    if not path.exists():
-        pytest.skip(f"shared data file {rel} not present (needs ../shared/data beside the repo)")
-    return path
+    """A file of the public motion data (tests/paths.py), or skip."""
+    return shared_file(f"data/{rel}")
 
 
 # ------------------------------------------------------------------------------ synthetic BVH
@@ -79,6 +77,14 @@ def test_rotation_channel_order_is_respected(tmp_path):
     assert np.allclose(pa[0, 1], np.array([1, 2, 3]) + target @ [0, 10, 0], atol=1e-6)
     assert np.allclose(ea[0, 1], pa[0, 1] + target @ target @ [0, 5, 0], atol=1e-6)
     assert np.isnan(ea[0, 0]).all()                     # Hips has no End Site of its own
+
+
+@pytest.mark.parametrize("order", ["XYZ", "ZXY", "YXZ", "ZYX", "xzy"])
+def test_euler_matrix_against_scipy(order):
+    """The one Euler helper both readers use: axes compose in the order listed (SciPy's intrinsic order)."""
+    from model_runtime.data.euler import euler_matrix
+    angles = np.random.default_rng(0).uniform(-180, 180, (5, 3))
+    assert np.allclose(euler_matrix(angles, order), euler(order, angles), atol=1e-12)
 
 
 def test_six_channel_joints_parse(tmp_path):
@@ -511,7 +517,7 @@ def test_every_bandai_label_has_a_phrase():
     from model_runtime.data.captions import BANDAI_CONTENT, BANDAI_STYLE, _labels
     cfgs = sorted(DATA.glob("bandai/dataset-*/cfg"))
     if not cfgs:
-        pytest.skip("shared Bandai data not present (needs ../shared/data beside the repo)")
+        pytest.skip("Bandai Namco test data not present beside the repository")
     for cfg in cfgs:
         assert set(_labels(cfg / "content_label.txt")) <= set(BANDAI_CONTENT)
         assert set(_labels(cfg / "style_label.txt")) <= set(BANDAI_STYLE)
@@ -544,7 +550,7 @@ def test_bandai_repository_adds_only_takes_the_data_folder_lacks(tmp_path):
     src = shared("bandai/dataset-2/data/dataset-2_walk-turn-left_normal_001.bvh")
     data = tmp_path / "repo" / "dataset" / "Bandai-Namco-Research-Motiondataset-2" / "data"
     data.mkdir(parents=True)
-    (data / src.name).write_bytes(src.read_bytes())                                   # already in shared/data
+    (data / src.name).write_bytes(src.read_bytes())                                   # already in the data folder
     (data / "dataset-2_walk-turn-left_normal_042.bvh").write_bytes(src.read_bytes())  # a take it lacks
     (data / "README.bvh").write_text("not a take")                                     # not a take name
     files = bandai_repository_files(tmp_path / "repo", skip={src.stem})
