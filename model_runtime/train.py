@@ -49,15 +49,14 @@ from .training.stages import STAGES, StageLoss, freeze_for, trainable_module
 RECIPE = {"vae": (6000, 128, 1e-4), "prior": (4000, 128, 1e-4), "hhi": (3000, 128, 1e-3),
           "hsi": (7500, 128, 1e-3), "fwsr": (600, 64, 1e-3)}
 DEFAULT_STEPS = {k: v[0] for k, v in RECIPE.items()}
-# HHI pair kinds the recipe trains on. "follow" (a leader walking ahead on the ego's path) is left out: with it
-# the module learned "walk on toward a person ahead" and walked the ego into a partner standing 3 m ahead
-# (clearance 0.01-0.07 m at alpha 1 against 0.04-0.41 m prior-only); without it the side-on approach
-# scenario's facing error at 90 degrees fell from 87 to 42 degrees (prior 60), measured here.
-# turn_to_face (pivot-turned standing clips, data/turns.py) is what made the ego turn to a side-on partner:
-# side-on approach scenario, 8 seeds, facing error 103 -> 28 deg at 3,000 steps (prior alone 84-89). The same
-# run gave 36 deg at 1,500 steps (4 seeds) and 52 at 4,500 although the held-out loss still fell (0.1131 ->
-# 0.1115): the reaction is not yet robust to the stopping point, and the recipe stops where it was best.
-HHI_TRAIN_KINDS = ("approach_face", "greet", "avoid_blocker", "turn_to_face")
+# HHI pair kinds (data/pairs/hhi.py): turn_to_face (pivot-turned standing clips, data/turns.py) is what made the ego
+# turn to a side-on partner: side-on approach scenario, 8 seeds, facing error 103 -> 28 deg at 3,000 steps (prior
+# alone 84-89). The same run gave 36 deg at 1,500 steps (4 seeds) and 52 at 4,500 although the held-out loss still
+# fell (0.1131 -> 0.1115): the reaction is not yet robust to the stopping point, and the recipe stops where it was
+# best. A "follow" kind (a leader walking ahead on the ego's path) was dropped: with it the module learned "walk on
+# toward a person ahead" and walked the ego into a partner standing 3 m ahead (clearance 0.01-0.07 m at alpha 1
+# against 0.04-0.41 m prior-only); without it the side-on approach scenario's facing error at 90 degrees fell from
+# 87 to 42 degrees (prior 60).
 
 
 def _rank() -> tuple[int, int]:
@@ -97,8 +96,8 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         lib, turned = add_pivot_turns(lib, train_ids + val_ids, seed=seed)
         train_ids = train_ids + [i for i in turned if not lib.is_held_out(i)]
         val_ids = val_ids + [i for i in turned if lib.is_held_out(i)]
-        pairs_tr = build_hhi_pairs(lib, train_ids, seed=seed, kinds=HHI_TRAIN_KINDS)
-        pairs_va = build_hhi_pairs(lib, val_ids, seed=seed + 1, kinds=HHI_TRAIN_KINDS)
+        pairs_tr = build_hhi_pairs(lib, train_ids, seed=seed)
+        pairs_va = build_hhi_pairs(lib, val_ids, seed=seed + 1)
     if stage == "hsi":
         from .data.detours import add_arrivals
         from .data.pairs import build_hsi_scenes

@@ -82,7 +82,7 @@ def test_rotation_channel_order_is_respected(tmp_path):
 @pytest.mark.parametrize("order", ["XYZ", "ZXY", "YXZ", "ZYX", "xzy"])
 def test_euler_matrix_against_scipy(order):
     """The one Euler helper both readers use: axes compose in the order listed (SciPy's intrinsic order)."""
-    from model_runtime.data.euler import euler_matrix
+    from model_runtime.data.geometry import euler_matrix
     angles = np.random.default_rng(0).uniform(-180, 180, (5, 3))
     assert np.allclose(euler_matrix(angles, order), euler(order, angles), atol=1e-12)
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .euler import euler_matrix
+from .geometry import euler_matrix
 
 
 def _euler(angles_deg: np.ndarray, order: str = "XYZ") -> np.ndarray:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .euler import euler_matrix
+from .geometry import euler_matrix
 
 _CHANNELS = {f"{a}{k}" for a in "xyz" for k in ("position", "rotation")}
 

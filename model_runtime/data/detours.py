@@ -166,7 +166,7 @@ def add_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[
         pool = pools[lib.is_held_out(i)] or stands
         if not pool:
             break
-        a, t = int(lib.offsets[i]), lib.frames(i)
+        a = int(lib.offsets[i])
         rng = np.random.default_rng([seed, int(i), 11])
         for k, kind in enumerate(COPIES):
             walk = int(rng.integers(WALK_FRAMES[0], WALK_FRAMES[1] + 1))

@@ -32,6 +32,7 @@ from ..errors import InputError
 from ..skeleton import (FOOT_JOINTS, JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS, SOLE_BELOW_FOOT_JOINT,
                         forward_kinematics, global_to_local, rest_joints, rest_offsets)
 from .bone_maps import NameIndex, parse_spec
+from .geometry import normalized
 
 # Y-up source -> Blender Z-up: x' = x, y' = -z, z' = y
 Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
@@ -40,10 +41,6 @@ J = JOINT_INDEX
 _REST = rest_joints(torch.float64).numpy()
 _OFF = rest_offsets(torch.float64).numpy()
 _SPINE = [J["pelvis"], J["spine1"], J["spine2"], J["spine3"], J["neck"]]
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
 # ------------------------------------------------------------------------------ bone map -> targets
@@ -129,14 +126,14 @@ def leg_length(joints: np.ndarray) -> float:
 
 def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Smallest rotations (T, 3, 3) taking directions a onto b (T, 3)."""
-    a, b = _unit(a), _unit(b)
+    a, b = normalized(a), normalized(b)
     axis = np.cross(a, b)
     s = np.linalg.norm(axis, axis=-1)
     c = (a * b).sum(-1)
     # antiparallel: turn half way round any axis perpendicular to a
     perp = np.cross(a, np.array([1.0, 0.0, 0.0]))
     perp = np.where(np.linalg.norm(perp, axis=-1, keepdims=True) < 1e-6, np.cross(a, [0.0, 1.0, 0.0]), perp)
-    axis = np.where((s < 1e-9)[:, None], _unit(perp), axis / np.maximum(s, 1e-12)[:, None])
+    axis = np.where((s < 1e-9)[:, None], normalized(perp), axis / np.maximum(s, 1e-12)[:, None])
     angle = np.arctan2(s, c)
     return _axis_angle(axis, angle)
 
@@ -153,8 +150,8 @@ def _axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
 def _frame(primary: np.ndarray, secondary: np.ndarray) -> np.ndarray:
     """Orthonormal frames (T, 3, 3) whose first column is `primary` and second is `secondary`'s part
     perpendicular to it."""
-    a = _unit(primary)
-    b = _unit(secondary - (secondary * a).sum(-1, keepdims=True) * a)
+    a = normalized(primary)
+    b = normalized(secondary - (secondary * a).sum(-1, keepdims=True) * a)
     return np.stack([a, b, np.cross(a, b)], -1)
 
 
@@ -190,7 +187,7 @@ def _pelvis_up(src: np.ndarray, hip_mid: np.ndarray, neck: np.ndarray) -> np.nda
     turned about the hip axis by the clip's median angle between that line and the torso (which
     removes where the rig happens to put that joint). Without such a joint: the torso itself."""
     torso = neck - hip_mid
-    side = _unit(src[:, J["left_hip"]] - src[:, J["right_hip"]])
+    side = normalized(src[:, J["left_hip"]] - src[:, J["right_hip"]])
     for j in (J["spine1"], J["spine2"], J["spine3"]):
         low = src[:, j] - hip_mid
         if np.median(np.linalg.norm(low, axis=-1)) > 0.03:
@@ -202,7 +199,7 @@ def _pelvis_up(src: np.ndarray, hip_mid: np.ndarray, neck: np.ndarray) -> np.nda
     theta = np.arctan2((np.cross(a, b) * side).sum(-1), (a * b).sum(-1))      # about the hip axis
     mid = np.median(theta)
     turn = _axis_angle(side, np.full(len(side), mid))
-    return (turn @ _unit(a)[..., None])[..., 0] * np.linalg.norm(torso, axis=-1, keepdims=True)
+    return (turn @ normalized(a)[..., None])[..., 0] * np.linalg.norm(torso, axis=-1, keepdims=True)
 
 
 def ik_targets(src: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -257,8 +254,8 @@ def solve_rotations(targets: np.ndarray, pelvis_rot: np.ndarray | None = None) -
     side_chest = tg[:, J["left_shoulder"]] - tg[:, J["right_shoulder"]]
     rest_side_hips = _REST[J["left_hip"]] - _REST[J["right_hip"]]
     rest_side_chest = _REST[J["left_shoulder"]] - _REST[J["right_shoulder"]]
-    hips_u, chest_u = _unit(side_hips), _unit(side_chest)
-    rest_hips_u, rest_chest_u = _unit(rest_side_hips), _unit(rest_side_chest)
+    hips_u, chest_u = normalized(side_hips), normalized(side_chest)
+    rest_hips_u, rest_chest_u = normalized(rest_side_hips), normalized(rest_side_chest)
     # twist shared out along the spine: spine1 mostly hips, spine3 and neck the shoulders
     side_mix = {J["spine1"]: 2 / 3, J["spine2"]: 1 / 3, J["spine3"]: 0.0, J["neck"]: 0.0}
 
@@ -312,7 +309,7 @@ def _limb_root(c: int, aim: np.ndarray, rest_aim: np.ndarray, swing: np.ndarray,
     """Hip or shoulder: aimed at its child c (knee / elbow), twisted so the limb bends in its hinge plane."""
     g = JOINT_NAMES[c]
     end = J[g.replace("knee", "ankle").replace("elbow", "wrist")]
-    a = _unit(aim)
+    a = normalized(aim)
     bend, rel = _perp(tg[:, end] - tg[:, c], a)
     # knees bend backwards (+Y on the rest body, which faces -Y); elbows forwards
     rest_bend = np.array([0.0, 1.0, 0.0]) if g.endswith("knee") else np.array([0.0, -1.0, 0.0])
@@ -321,9 +318,9 @@ def _limb_root(c: int, aim: np.ndarray, rest_aim: np.ndarray, swing: np.ndarray,
         toes = tg[:, J[g.replace("knee", "foot")]] - tg[:, end]
         back, rel_t = _perp(-toes, a)
         wt = _bend_weight(rel_t)
-        fallback = wt * _unit(back) + (1 - wt) * fallback
+        fallback = wt * normalized(back) + (1 - wt) * fallback
     w = _bend_weight(rel)
-    second = w * _unit(bend) + (1 - w) * _perp(fallback, a)[0]
+    second = w * normalized(bend) + (1 - w) * _perp(fallback, a)[0]
     ok = (np.linalg.norm(second, axis=-1) > 1e-6)[:, None, None]
     return np.where(ok, _two_vector(rest_aim, rest_bend, aim, second), swing)
 
@@ -390,8 +387,8 @@ def fit_error(joints: np.ndarray, targets: np.ndarray) -> dict:
     err = np.linalg.norm(d, axis=-1) * 1000.0
     legs = sorted(_LEGS | {J["left_foot"], J["right_foot"]})
     par = list(PARENTS[1:])
-    a = _unit(joints[:, 1:] - joints[:, par])
-    b = _unit(targets[:, 1:] - targets[:, par])
+    a = normalized(joints[:, 1:] - joints[:, par])
+    b = normalized(targets[:, 1:] - targets[:, par])
     ang = np.degrees(np.arccos(np.clip((a * b).sum(-1), -1.0, 1.0)))
     return {"mean": float(err.mean()), "max": float(err.max()), "legs_mean": float(err[:, legs].mean()),
             "dir_deg": float(ang.mean())}

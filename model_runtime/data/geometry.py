@@ -1,9 +1,15 @@
-"""Rotation matrices from Euler angles (NumPy), for the BVH and Acclaim ASF/AMC readers."""
+"""Small NumPy geometry shared by the motion readers, retargeting and the pair builders: unit vectors and
+rotation matrices from Euler angles."""
 from __future__ import annotations
 
 import numpy as np
 
 _PLANE = ((1, 2), (2, 0), (0, 1))   # the two axes each of x, y, z rotates
+
+
+def normalized(v: np.ndarray) -> np.ndarray:
+    """v scaled to length 1 along its last axis (a zero vector stays zero)."""
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
 def axis_rotation(axis: int, ang: np.ndarray) -> np.ndarray:
