@@ -406,6 +406,21 @@ def test_asf_amc_round_trip_matches_the_equivalent_bvh(tmp_path):
     assert (j[:, J["head"], 2] > j[:, J["pelvis"], 2] + 0.3).all()
 
 
+def test_prepare_reads_a_folder_of_mixed_formats(tmp_path):
+    """BVH, ASF + AMC and AMASS .npz side by side: every motion file is a clip (the .asf is none), the AMC's rate
+    comes from captions.csv, and two files differing only in their suffix keep apart names."""
+    from model_runtime.data.prepare import build_library
+    write_asf_amc_and_bvh(tmp_path, frames=150)
+    (tmp_path / "amass").mkdir()
+    write_npz(tmp_path / "amass" / "stand_up.npz", [math.pi / 2, 0, 0], frames=90)
+    (tmp_path / "captions.csv").write_text("file,caption,fps\nsynth_01.amc,a person sways,120\n"
+                                           "synth_01.bvh,,120\n")
+    lib = build_library(tmp_path, progress=False)
+    assert dict(zip(lib.names, lib.captions)) == {"user/amass/stand_up": "stand up",
+                                                  "user/synth_01.amc": "a person sways", "user/synth_01.bvh": "synth"}
+    assert lib.frames(lib.names.index("user/synth_01.amc")) == lib.frames(lib.names.index("user/synth_01.bvh")) == 13
+
+
 def test_amc_needs_its_skeleton(tmp_path):
     (tmp_path / "x_01.amc").write_text(":DEGREES\n1\nroot 0 0 0 0 0 0\n")
     with pytest.raises(InputError, match="no skeleton"):

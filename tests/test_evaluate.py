@@ -104,9 +104,10 @@ def test_evaluate_main_smoke(tmp_path, capsys):
                 row["val_loss"] = 1.2 / step
             fh.write(json.dumps(row) + "\n")
     plots = tmp_path / "plots"
-    rc = evaluate_main(["--data", str(tmp_path / "no_data_needed"), "--library", str(lib_path), "--model", str(model_path),
-                  "--json", "--plots", str(plots), "--logs", str(logs), "--rollouts", "2", "--rollout-frames", "12",
-                  "--scenario-frames", "12", "--seeds", "0", "--windows", "16"])
+    rc = evaluate_main(["--data", str(tmp_path / "no_data_needed"), "--library", str(lib_path),
+                        "--model", str(model_path), "--json", "--plots", str(plots), "--logs", str(logs),
+                        "--rollouts", "2", "--rollout-frames", "12", "--scenario-frames", "12", "--seeds", "0",
+                        "--windows", "16"])
     out = capsys.readouterr().out.strip().splitlines()
     assert rc == 0 and len(out) == 1
     res = json.loads(out[0])

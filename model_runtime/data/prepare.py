@@ -148,9 +148,9 @@ def summary(lib: "ClipLibrary", out: Path) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m model_runtime.data.prepare", description=__doc__.split("\n\n")[0].rstrip(":") + ".",
-                                 epilog="\n\n".join(__doc__.split("\n\n")[1:6]),
-                                 formatter_class=HelpFormatter)
+    parts = __doc__.split("\n\n")
+    ap = argparse.ArgumentParser(prog="python -m model_runtime.data.prepare", description=parts[0].rstrip(":") + ".",
+                                 epilog="\n\n".join(parts[1:6]), formatter_class=HelpFormatter)
     ap.add_argument("--data", required=True, help="folder of .bvh / .amc (+ .asf) / .npz motion files, searched "
                     "with its sub-folders; an optional captions.csv in it gives captions (see below)")
     ap.add_argument("--out", default="runs/clips.npz", help="the clip cache to write")
