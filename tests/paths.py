@@ -21,3 +21,8 @@ def shared_file(rel: str) -> Path:
     if not path.exists():
         pytest.skip(f"test data {rel} not present beside the repository")
     return path
+
+
+def data_file(rel: str) -> Path:
+    """A file of the public motion data (DATA / rel), or skip the calling test when it is absent."""
+    return shared_file(f"data/{rel}")

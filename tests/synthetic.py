@@ -151,3 +151,11 @@ def _axes_matrix(up):
 
 def _to_file_axes(v, up):
     return _axes_matrix(up) @ v
+
+
+def write_npz(path, root_orient, frames=60, rate_key="mocap_frame_rate", width=165, **extra):
+    """An AMASS-style .npz at 60 fps: zero body pose, the given root orientation, no translation."""
+    poses = np.zeros((frames, width), np.float32)
+    poses[:, :3] = root_orient
+    np.savez(path, poses=poses, trans=np.zeros((frames, 3), np.float32), **{rate_key: np.array(60.0)}, **extra)
+    return path
