@@ -2,6 +2,8 @@
 samplers (with generated partners and scenes for the interaction stages) and the decoder's sensitivity."""
 from __future__ import annotations
 
+from typing import Callable
+
 import torch
 
 from ..config import ModelConfig
@@ -32,8 +34,9 @@ def check_library(lib: ClipLibrary, cfg: ModelConfig) -> None:
     """Fail at once, before minutes of set-up, when the library cannot give training and held-out segments."""
     need = cfg.history + cfg.future + 1
     if len(lib) < 2:
-        raise RemogenError(f"the clip library has {len(lib)} clip; training needs at least 2 (one is held out for "
-                           "validation): add motion files and run python -m model_runtime.data.prepare again")
+        raise RemogenError(f"the clip library has {len(lib)} clip{'' if len(lib) == 1 else 's'}; training needs at "
+                           "least 2 (one is held out for validation): add motion files and run "
+                           "python -m model_runtime.data.prepare again")
     train_ids, val_ids = lib.split("train", min_frames=need), lib.split("val", min_frames=need)
     if not train_ids or not val_ids:
         raise RemogenError(f"training needs a training clip and a held-out clip of at least {need} frames "
@@ -41,7 +44,9 @@ def check_library(lib: ClipLibrary, cfg: ModelConfig) -> None:
                            "add longer clips")
 
 
-def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int, rank: int, note=lambda m: None):
+def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int, rank: int,
+                   note: Callable[[str], None] = lambda msg: None
+                   ) -> tuple[SegmentSampler, SegmentSampler | None]:
     """Training and validation samplers for a stage (interaction stages get generated pairs/scenes); no
     validation sampler (None) when no held-out clip fits the stage's pair rules."""
     train_ids, val_ids = lib.split("train"), lib.split("val")
