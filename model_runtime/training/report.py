@@ -68,9 +68,12 @@ def summary(runs: list[StageRun], stages: tuple[str, ...], argv: list[str], worl
         lines.append(f"to continue: {command}   (resumes {last.stage} at step {last.steps:,}{bound})")
     elif last.stage != stages[-1]:
         nxt = stages[stages.index(last.stage) + 1]
-        if argv and argv[0] == last.stage:
-            lines.append("next stage: python -m model_runtime.train "
-                         + " ".join(shlex.quote(a) for a in [nxt, *argv[1:]]))
-        else:
+        # the STAGE argument: the stage's name where no option precedes it as its value
+        at = next((i for i, a in enumerate(argv) if a == last.stage and (i == 0 or not argv[i - 1].startswith("-"))),
+                  None)
+        if at is None:
             lines.append(f"to continue with {nxt}: {command}")
+        else:
+            lines.append("next stage: python -m model_runtime.train "
+                         + " ".join(shlex.quote(a) for a in [*argv[:at], nxt, *argv[at + 1:]]))
     return "\n".join(lines)
