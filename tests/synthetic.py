@@ -1,4 +1,5 @@
-"""Small synthetic motion for tests: rest bodies walking and turning (no licensed data)."""
+"""Small synthetic motion for tests: rest bodies walking and turning, and BVH files of a humanoid with
+SMPL-X's proportions (no licensed data)."""
 from __future__ import annotations
 
 import math
@@ -7,7 +8,10 @@ import numpy as np
 import torch
 
 from model_runtime.data.library import ClipLibrary
-from model_runtime.skeleton import axis_angle_to_matrix, matrix_to_quat, standing_pelvis_height, yaw_matrix
+from model_runtime.skeleton import (JOINT_INDEX, JOINT_NAMES, PARENTS, REST_JOINTS_ZUP, axis_angle_to_matrix,
+                                    matrix_to_quat, standing_pelvis_height, yaw_matrix)
+
+J = JOINT_INDEX
 
 
 def walking_clip(frames: int, speed: float, turn: float, start=(0.0, 0.0), yaw0: float = 0.0, phase: float = 0.0):
@@ -60,3 +64,98 @@ def library_of(clips: list[tuple[str, str, str, tuple[np.ndarray, np.ndarray]]])
     off = np.cumsum([0] + [len(c[3][1]) for c in clips]).astype(np.int64)
     return ClipLibrary([c[0] for c in clips], [c[1] for c in clips], [c[2] for c in clips], rot, pel, off,
                        [0.0] * len(clips))
+
+
+# A humanoid with SMPL-X's own proportions and plain BVH names: retargeting it must be near exact.
+NAMES = {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2", "neck": "Neck",
+         "head": "Head"}
+for _s, _S in (("left", "Left"), ("right", "Right")):
+    NAMES.update({f"{_s}_hip": f"{_S}UpLeg", f"{_s}_knee": f"{_S}Leg", f"{_s}_ankle": f"{_S}Foot",
+                  f"{_s}_foot": f"{_S}ToeBase", f"{_s}_collar": f"{_S}Shoulder",
+                  f"{_s}_shoulder": f"{_S}Arm", f"{_s}_elbow": f"{_S}ForeArm", f"{_s}_wrist": f"{_S}Hand"})
+REST_YUP = np.array(REST_JOINTS_ZUP) @ np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]).T   # Z-up -> Y-up
+
+
+def humanoid_bvh(path, fps=120.0, seconds=2.0, unit=0.01, order="ZXY", up="Y", rest_frame=False,
+                 amplitude=25.0, seed=0):
+    """Write a walking-ish SMPL-X-proportioned humanoid; returns (path, world joints (T, 22, 3) metres Z-up)."""
+    from scipy.spatial.transform import Rotation
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(round(seconds * fps)) + 1) / fps
+    n = len(t)
+    phase = rng.uniform(0, 2 * np.pi, (22, 3))
+    freq = rng.uniform(0.5, 1.5, (22, 3))
+    ang = amplitude * np.sin(2 * np.pi * freq * t[:, None, None] + phase)          # (T, 22, 3) degrees
+    ang[:, 0] *= 0.4                                                                  # keep it upright
+    ang[:, [J["left_collar"], J["right_collar"]]] *= 0.3
+    rest = REST_YUP - REST_YUP[0]
+    root = np.stack([0.05 * np.sin(t), np.full(n, 0.95), 1.2 * t], -1)               # forward = +Z (Y-up)
+    if rest_frame:
+        ang[0] = 0.0
+    kids = {j: [c for c in range(22) if PARENTS[c] == j] for j in range(22)}
+
+    def block(j, depth):
+        pad = "\t" * depth
+        name = NAMES[JOINT_NAMES[j]]
+        head = f"{pad}ROOT {name}" if j == 0 else f"{pad}JOINT {name}"
+        off = np.zeros(3) if j == 0 else (rest[j] - rest[PARENTS[j]])
+        off = _to_file_axes(off, up) / unit
+        ch = " ".join(f"{a}rotation" for a in order)
+        ch = f"CHANNELS 6 Xposition Yposition Zposition {ch}" if j == 0 else f"CHANNELS 3 {ch}"
+        out = [head, pad + "{", f"{pad}\tOFFSET {off[0]:.6f} {off[1]:.6f} {off[2]:.6f}", f"{pad}\t{ch}"]
+        for c in kids[j]:
+            out += block(c, depth + 1)
+        if not kids[j]:
+            out += [f"{pad}\tEnd Site", f"{pad}\t{{", f"{pad}\t\tOFFSET 0 {0.05 / unit:.6f} 0", f"{pad}\t}}"]
+        return out + [pad + "}"]
+
+    order_js = []
+
+    def visit(j):
+        order_js.append(j)
+        for c in kids[j]:
+            visit(c)
+    visit(0)
+    # the file's rotations live in its own axes: conjugate Y-up rotations when the file is Z-up
+    a = Rotation.from_matrix(_axes_matrix(up) @ Rotation.from_euler("XYZ", ang.reshape(-1, 3), degrees=True)
+                             .as_matrix() @ _axes_matrix(up).T).as_euler(order.upper(), degrees=True)
+    a = a.reshape(n, 22, 3)
+    rows = []
+    for f in range(n):
+        vals = list(_to_file_axes(root[f], up) / unit) + list(a[f, 0])
+        for j in order_js[1:]:
+            vals += list(a[f, j])
+        rows.append(" ".join(f"{v:.6f}" for v in vals))
+    text = "\n".join(["HIERARCHY"] + block(0, 0) + ["MOTION", f"Frames: {n}", f"Frame Time: {1 / fps:.8f}"]
+                     + rows) + "\n"
+    path.write_text(text)
+    # ground truth: Y-up FK -> Z-up metres
+    glob = np.zeros((n, 22, 3, 3))
+    pos = np.zeros((n, 22, 3))
+    local = Rotation.from_euler("XYZ", ang.reshape(-1, 3), degrees=True).as_matrix().reshape(n, 22, 3, 3)
+    for j in range(22):
+        if j == 0:
+            glob[:, 0], pos[:, 0] = local[:, 0], root
+        else:
+            p = PARENTS[j]
+            glob[:, j] = glob[:, p] @ local[:, j]
+            pos[:, j] = pos[:, p] + glob[:, p] @ (rest[j] - rest[p])
+    zup = pos @ np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]).T
+    return path, zup
+
+
+def _axes_matrix(up):
+    """Y-up coordinates -> the file's coordinates."""
+    return np.eye(3) if up == "Y" else np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
+
+
+def _to_file_axes(v, up):
+    return _axes_matrix(up) @ v
+
+
+def write_npz(path, root_orient, frames=60, rate_key="mocap_frame_rate", width=165, **extra):
+    """An AMASS-style .npz at 60 fps: zero body pose, the given root orientation, no translation."""
+    poses = np.zeros((frames, width), np.float32)
+    poses[:, :3] = root_orient
+    np.savez(path, poses=poses, trans=np.zeros((frames, 3), np.float32), **{rate_key: np.array(60.0)}, **extra)
+    return path

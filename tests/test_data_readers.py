@@ -1,11 +1,10 @@
-"""Motion readers, retargeting, resampling and captions (model_runtime.data).
+"""Motion readers (BVH, AMASS .npz), retargeting and resampling (model_runtime.data).
 
-Synthetic files are written to tmp_path; real clips come from ../shared/data (read-only) and are
-skipped with a reason when that folder is absent.
+Synthetic files are written to tmp_path; real clips come from the optional test data (tests/paths.py),
+read-only, and are skipped with a reason when it is absent.
 """
 import math
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,20 +12,14 @@ from scipy.spatial.transform import Rotation
 
 from model_runtime.data import Motion, load_motion
 from model_runtime.data.bvh import read_bvh
-from model_runtime.data.captions import bandai_caption, caption_for, cmu_caption, hdm05_caption
 from model_runtime.data.motion import resample_positions
 from model_runtime.errors import InputError
-from model_runtime.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS, REST_JOINTS_ZUP
+from model_runtime.skeleton import JOINT_INDEX
+from paths import data_file
+from synthetic import humanoid_bvh, write_npz
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 J = JOINT_INDEX
 
-
-def shared(rel: str) -> Path:
-    path = DATA / rel
-    if not path.exists():
-        pytest.skip(f"shared data file {rel} not present (needs ../shared/data beside the repo)")
-    return path
 
 
 # ------------------------------------------------------------------------------ synthetic BVH
@@ -81,6 +74,14 @@ def test_rotation_channel_order_is_respected(tmp_path):
     assert np.isnan(ea[0, 0]).all()                     # Hips has no End Site of its own
 
 
+@pytest.mark.parametrize("order", ["XYZ", "ZXY", "YXZ", "ZYX", "xzy"])
+def test_euler_matrix_against_scipy(order):
+    """The one Euler helper both readers use: axes compose in the order listed (SciPy's intrinsic order)."""
+    from model_runtime.data.geometry import euler_matrix
+    angles = np.random.default_rng(0).uniform(-180, 180, (5, 3))
+    assert np.allclose(euler_matrix(angles, order), euler(order, angles), atol=1e-12)
+
+
 def test_six_channel_joints_parse(tmp_path):
     m = read_bvh(write_chain(tmp_path, "ZXY", [0, 0, 90], "six.bvh", six=True))
     assert len(m.joints[1].channels) == 6
@@ -110,92 +111,6 @@ def test_bad_files_are_named(tmp_path):
         load_motion(tmp_path / "x.fbx")
     with pytest.raises(InputError, match="does not exist"):
         load_motion(tmp_path / "missing.bvh")
-
-
-# A humanoid with SMPL-X's own proportions and plain BVH names: retargeting it must be near exact.
-NAMES = {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2", "neck": "Neck",
-         "head": "Head"}
-for _s, _S in (("left", "Left"), ("right", "Right")):
-    NAMES.update({f"{_s}_hip": f"{_S}UpLeg", f"{_s}_knee": f"{_S}Leg", f"{_s}_ankle": f"{_S}Foot",
-                  f"{_s}_foot": f"{_S}ToeBase", f"{_s}_collar": f"{_S}Shoulder",
-                  f"{_s}_shoulder": f"{_S}Arm", f"{_s}_elbow": f"{_S}ForeArm", f"{_s}_wrist": f"{_S}Hand"})
-REST_YUP = np.array(REST_JOINTS_ZUP) @ np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]).T   # Z-up -> Y-up
-
-
-def humanoid_bvh(path, fps=120.0, seconds=2.0, unit=0.01, order="ZXY", up="Y", rest_frame=False,
-                 amplitude=25.0, seed=0):
-    """Write a walking-ish SMPL-X-proportioned humanoid; returns (path, world joints (T, 22, 3) metres Z-up)."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(int(round(seconds * fps)) + 1) / fps
-    n = len(t)
-    phase = rng.uniform(0, 2 * np.pi, (22, 3))
-    freq = rng.uniform(0.5, 1.5, (22, 3))
-    ang = amplitude * np.sin(2 * np.pi * freq * t[:, None, None] + phase)          # (T, 22, 3) degrees
-    ang[:, 0] *= 0.4                                                                  # keep it upright
-    ang[:, [J["left_collar"], J["right_collar"]]] *= 0.3
-    rest = REST_YUP - REST_YUP[0]
-    root = np.stack([0.05 * np.sin(t), np.full(n, 0.95), 1.2 * t], -1)               # forward = +Z (Y-up)
-    if rest_frame:
-        ang[0] = 0.0
-    kids = {j: [c for c in range(22) if PARENTS[c] == j] for j in range(22)}
-
-    def block(j, depth):
-        pad = "\t" * depth
-        name = NAMES[JOINT_NAMES[j]]
-        head = f"{pad}ROOT {name}" if j == 0 else f"{pad}JOINT {name}"
-        off = np.zeros(3) if j == 0 else (rest[j] - rest[PARENTS[j]])
-        off = _to_file_axes(off, up) / unit
-        ch = " ".join(f"{a}rotation" for a in order)
-        ch = f"CHANNELS 6 Xposition Yposition Zposition {ch}" if j == 0 else f"CHANNELS 3 {ch}"
-        out = [head, pad + "{", f"{pad}\tOFFSET {off[0]:.6f} {off[1]:.6f} {off[2]:.6f}", f"{pad}\t{ch}"]
-        for c in kids[j]:
-            out += block(c, depth + 1)
-        if not kids[j]:
-            out += [f"{pad}\tEnd Site", f"{pad}\t{{", f"{pad}\t\tOFFSET 0 {0.05 / unit:.6f} 0", f"{pad}\t}}"]
-        return out + [pad + "}"]
-
-    order_js = []
-
-    def visit(j):
-        order_js.append(j)
-        for c in kids[j]:
-            visit(c)
-    visit(0)
-    # the file's rotations live in its own axes: conjugate Y-up rotations when the file is Z-up
-    a = Rotation.from_matrix(_axes_matrix(up) @ Rotation.from_euler("XYZ", ang.reshape(-1, 3), degrees=True)
-                             .as_matrix() @ _axes_matrix(up).T).as_euler(order.upper(), degrees=True)
-    a = a.reshape(n, 22, 3)
-    rows = []
-    for f in range(n):
-        vals = list(_to_file_axes(root[f], up) / unit) + list(a[f, 0])
-        for j in order_js[1:]:
-            vals += list(a[f, j])
-        rows.append(" ".join(f"{v:.6f}" for v in vals))
-    text = "\n".join(["HIERARCHY"] + block(0, 0) + ["MOTION", f"Frames: {n}", f"Frame Time: {1 / fps:.8f}"]
-                     + rows) + "\n"
-    path.write_text(text)
-    # ground truth: Y-up FK -> Z-up metres
-    glob = np.zeros((n, 22, 3, 3))
-    pos = np.zeros((n, 22, 3))
-    local = Rotation.from_euler("XYZ", ang.reshape(-1, 3), degrees=True).as_matrix().reshape(n, 22, 3, 3)
-    for j in range(22):
-        if j == 0:
-            glob[:, 0], pos[:, 0] = local[:, 0], root
-        else:
-            p = PARENTS[j]
-            glob[:, j] = glob[:, p] @ local[:, j]
-            pos[:, j] = pos[:, p] + glob[:, p] @ (rest[j] - rest[p])
-    zup = pos @ np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]).T
-    return path, zup
-
-
-def _axes_matrix(up):
-    """Y-up coordinates -> the file's coordinates."""
-    return np.eye(3) if up == "Y" else np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
-
-
-def _to_file_axes(v, up):
-    return _axes_matrix(up) @ v
 
 
 def grounded(truth):
@@ -268,37 +183,29 @@ def check_plausible(m, lo=0.7, hi=2.0):
 def test_real_walks_load(rel):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        m = load_motion(shared(rel))
+        m = load_motion(data_file(rel))
     check_plausible(m)
     daz = "daz_friendly" in rel
     assert any("added rest pose" in str(w.message) for w in caught) == daz          # DAZ frame 0 only
 
 
 def test_cc_clip_loads():
-    m = load_motion(shared("cmu/cc_retarget_60fps/002/002_05.bvh"))
+    m = load_motion(data_file("cmu/cc_retarget_60fps/002/002_05.bvh"))
     j = m.joints
     assert (j[:, J["head"], 2] > j[:, J["pelvis"], 2]).all()
     assert m.fit_error_mm["legs_mean"] < 30 and m.fit_error_mm["dir_deg"] < 10
 
 
 def test_amc2bvh_needs_the_fps_override_or_the_index():
-    path = shared("cmu/amc2bvh_raw_30fps_header/16/16_01.bvh")
+    path = data_file("cmu/amc2bvh_raw_30fps_header/16/16_01.bvh")
     with pytest.warns(UserWarning, match="usually 120 fps"):
         m30 = load_motion(path)
     m120 = load_motion(path, fps=120)
     assert m120.joints.shape[0] * 4 == pytest.approx(m30.joints.shape[0], abs=4)
-    indexed = load_motion(path, index=shared("cmu/index.csv"))
+    indexed = load_motion(path, index=data_file("cmu/index.csv"))
     assert indexed.joints.shape == m120.joints.shape and indexed.caption == "a person jumps"
     assert m120.fit_error_mm["unit_name"] == "CMU ASF units"
 
-
-# ------------------------------------------------------------------------------ AMASS .npz
-
-def write_npz(path, root_orient, frames=60, rate_key="mocap_frame_rate", width=165, **extra):
-    poses = np.zeros((frames, width), np.float32)
-    poses[:, :3] = root_orient
-    np.savez(path, poses=poses, trans=np.zeros((frames, 3), np.float32), **{rate_key: np.array(60.0)}, **extra)
-    return path
 
 
 def test_amass_axes(tmp_path):
@@ -332,222 +239,3 @@ def test_amass_errors(tmp_path):
     np.savez(p, poses=np.full((5, 165), np.nan), trans=np.zeros((5, 3)), mocap_frame_rate=30.0)
     with pytest.raises(InputError, match="NaN"):
         load_motion(p)
-
-
-# ------------------------------------------------------------------------------ ASF / AMC
-
-TINY_ASF = """:version 1.10
-:name tiny
-:units
-  mass 1.0
-  length 0.45
-  angle deg
-:root
-   order TX TY TZ RX RY RZ
-   axis XYZ
-   position 0 0 0
-   orientation 0 0 0
-:bonedata
-  begin
-     id 1
-     name upper
-     direction 0 1 0
-     length 10
-     axis 0 0 0 XYZ
-     dof rx ry rz
-  end
-  begin
-     id 2
-     name lower
-     direction 1 0 0
-     length 5
-     axis 0 0 90 XYZ
-     dof rz
-  end
-:hierarchy
-  begin
-    root upper
-    upper lower
-  end
-"""
-
-
-def test_asf_amc_forward_kinematics(tmp_path):
-    from model_runtime.data.asf_amc import asf_amc_positions, read_amc, read_asf
-    (tmp_path / "s.asf").write_text(TINY_ASF)
-    (tmp_path / "s_01.amc").write_text(":FULLY-SPECIFIED\n:DEGREES\n1\nroot 1 2 3 0 0 0\nupper 0 0 90\nlower 0\n"
-                                       "2\nroot 1 2 3 0 0 0\nupper 0 0 0\nlower 90\n")
-    skel = read_asf(tmp_path / "s.asf")
-    assert skel.metres_per_unit == pytest.approx(0.0254 / 0.45)
-    starts, ends, names = asf_amc_positions(skel, read_amc(tmp_path / "s_01.amc", skel))
-    assert names == ["hip", "upper", "lower"]
-    # frame 0: 'upper' (+Y, 10) turned 90 deg about Z points to -X; 'lower' (+X, 5) turns with it -> +Y
-    assert np.allclose(ends[0, 1], [1 - 10, 2, 3], atol=1e-9)
-    assert np.allclose(ends[0, 2], [1 - 10, 2 + 5, 3], atol=1e-9)
-    assert np.allclose(starts[0, 2], ends[0, 1])
-    # frame 1: 'lower' rotates 90 deg about its own axis frame (its local Z = world Z here) -> +Y
-    assert np.allclose(ends[1, 2], [1, 2 + 10 + 5, 3], atol=1e-9)
-
-
-# CMU-style bone chain (bone -> its start and end as SMPL-X joints; None = a short stub)
-ASF_BONES = [("lhipjoint", "root", "pelvis", "left_hip"), ("lfemur", "lhipjoint", "left_hip", "left_knee"),
-             ("ltibia", "lfemur", "left_knee", "left_ankle"), ("lfoot", "ltibia", "left_ankle", "left_foot"),
-             ("ltoes", "lfoot", "left_foot", None),
-             ("lowerback", "root", "pelvis", "spine1"), ("upperback", "lowerback", "spine1", "spine2"),
-             ("thorax", "upperback", "spine2", "spine3"), ("lowerneck", "thorax", "spine3", "neck"),
-             ("upperneck", "lowerneck", "neck", "head"), ("head", "upperneck", "head", None),
-             ("lclavicle", "thorax", "spine3", "left_shoulder"),
-             ("lhumerus", "lclavicle", "left_shoulder", "left_elbow"),
-             ("lradius", "lhumerus", "left_elbow", "left_wrist"), ("lwrist", "lradius", "left_wrist", None)]
-ASF_BONES += [("r" + b[1:], ("r" + p[1:]) if p[0] == "l" else p, s.replace("left", "right"),
-               e.replace("left", "right") if e else None) for b, p, s, e in ASF_BONES if b[0] == "l"]
-
-
-def write_asf_amc_and_bvh(tmp_path, frames=25):
-    """The same CMU-style skeleton and motion as ASF + AMC and as the BVH amc2bvh would write."""
-    inch = 0.0254
-    rest = {n: REST_YUP[i] / inch for i, n in enumerate(JOINT_NAMES)}
-    vec = {}
-    for b, _, s, e in ASF_BONES:
-        vec[b] = (rest[e] - rest[s]) if e else np.array([0.0, 2.0, 0.0] if b == "head" else [0, 0, 1.5]
-                                                       if "toes" in b else [2.0 if b[0] == "l" else -2.0, 0, 0])
-    asf = [":version 1.10", ":name synth", ":units", "  mass 1.0", "  length 1.0", "  angle deg",
-           ":root", "   order TX TY TZ RX RY RZ", "   axis XYZ", "   position 0 0 0", "   orientation 0 0 0",
-           ":bonedata"]
-    for k, (b, _, _, _) in enumerate(ASF_BONES):
-        v = vec[b]
-        d = v / np.linalg.norm(v)
-        asf += ["  begin", f"     id {k + 1}", f"     name {b}", f"     direction {d[0]:.8f} {d[1]:.8f} {d[2]:.8f}",
-                f"     length {np.linalg.norm(v):.8f}", "     axis 0 0 0 XYZ", "     dof rx ry rz", "  end"]
-    kids = {}
-    for b, p, _, _ in ASF_BONES:
-        kids.setdefault(p, []).append(b)
-    asf += [":hierarchy", "  begin"] + [f"    {p} {' '.join(c)}" for p, c in kids.items()] + ["  end"]
-    (tmp_path / "synth.asf").write_text("\n".join(asf) + "\n")
-    rng = np.random.default_rng(1)
-    t = np.arange(frames) / 120.0
-    ang = {b: 15 * np.sin(2 * np.pi * rng.uniform(0.5, 2, 3) * t[:, None] + rng.uniform(0, 6, 3))
-           for b, *_ in ASF_BONES}
-    root_t = np.stack([np.zeros(frames), np.full(frames, rest["pelvis"][1] - rest["left_foot"][1] + 2),
-                       40 * t], -1)
-    root_r = 5 * np.sin(2 * np.pi * t[:, None] + np.array([0, 1, 2]))
-    amc = [":FULLY-SPECIFIED", ":DEGREES"]
-    for f in range(frames):
-        amc.append(str(f + 1))
-        amc.append("root " + " ".join(f"{v:.6f}" for v in list(root_t[f]) + list(root_r[f])))
-        amc += [f"{b} " + " ".join(f"{v:.6f}" for v in ang[b][f]) for b, *_ in ASF_BONES]
-    (tmp_path / "synth_01.amc").write_text("\n".join(amc) + "\n")
-
-    # BVH: joint = bone start, OFFSET = the parent bone's vector, ZYX channels (M = Rz Ry Rx)
-    def block(b, depth):
-        pad = "  " * depth
-        parent = next((p for bb, p, *_ in ASF_BONES if bb == b), None)
-        off = vec[parent] if parent not in (None, "root") else np.zeros(3)
-        out = [f"{pad}JOINT {b}", pad + "{", f"{pad}  OFFSET {off[0]:.8f} {off[1]:.8f} {off[2]:.8f}",
-               f"{pad}  CHANNELS 3 Zrotation Yrotation Xrotation"]
-        for c in kids.get(b, []):
-            out += block(c, depth + 1)
-        if b not in kids:
-            v = vec[b]
-            out += [f"{pad}  End Site", pad + "  {", f"{pad}    OFFSET {v[0]:.8f} {v[1]:.8f} {v[2]:.8f}", pad + "  }"]
-        return out + [pad + "}"]
-
-    order = []
-
-    def visit(b):
-        order.append(b)
-        for c in kids.get(b, []):
-            visit(c)
-    for c in kids["root"]:
-        visit(c)
-    bvh = ["HIERARCHY", "ROOT hip", "{", "  OFFSET 0 0 0",
-           "  CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation"]
-    for c in kids["root"]:
-        bvh += block(c, 1)
-    bvh += ["}", "MOTION", f"Frames: {frames}", "Frame Time: 0.00833333"]
-    for f in range(frames):
-        vals = list(root_t[f]) + list(root_r[f][::-1])
-        for b in order:
-            vals += list(ang[b][f][::-1])
-        bvh.append(" ".join(f"{v:.6f}" for v in vals))
-    (tmp_path / "synth_01.bvh").write_text("\n".join(bvh) + "\n")
-
-
-def test_asf_amc_round_trip_matches_the_equivalent_bvh(tmp_path):
-    write_asf_amc_and_bvh(tmp_path)
-    with pytest.warns(UserWarning, match="no frame rate"):
-        amc = load_motion(tmp_path / "synth_01.amc")                 # finds synth.asf, assumes 120 fps
-    bvh = load_motion(tmp_path / "synth_01.bvh", fps=120)
-    assert amc.joints.shape == bvh.joints.shape == (3, 22, 3)
-    assert np.abs(amc.joints - bvh.joints).max() < 1e-4
-    assert amc.fit_error_mm["unit_name"] == "declared" and bvh.fit_error_mm["unit_name"] == "inches"
-    j = amc.joints
-    assert (j[:, J["head"], 2] > j[:, J["pelvis"], 2] + 0.3).all()
-
-
-def test_amc_needs_its_skeleton(tmp_path):
-    (tmp_path / "x_01.amc").write_text(":DEGREES\n1\nroot 0 0 0 0 0 0\n")
-    with pytest.raises(InputError, match="no skeleton"):
-        load_motion(tmp_path / "x_01.amc")
-
-
-# ------------------------------------------------------------------------------ captions
-
-def test_caption_phrases():
-    assert bandai_caption("walk-left", "tired") == "a person walks to the left, tired"
-    assert bandai_caption("bow", "happy") == "a person bows, happily"
-    assert bandai_caption("walk", "normal") == "a person walks forward"
-    assert hdm05_caption("walkRightCircle4StepsRstart") == "a person walks in a circle to the right"
-    assert hdm05_caption("kickLFront1Reps") == "a person kicks forward with the left leg"
-    assert hdm05_caption("sitDownChair") == "a person sits down on a chair"
-    assert cmu_caption('"slow walk"') == "a person walks slowly"
-    assert cmu_caption("playground - climb, sit") == "a person plays on a playground: climbs and sits"
-    assert cmu_caption("bend over, scoop up, rise, lift arm") == "a person bends over, scoops up, rises and lifts arm"
-    assert caption_for("HDM_bd_jumpingJack1Reps_001_120.amc") == "a person does jumping jacks"
-    assert caption_for("somewhere/else.bvh") is None
-
-
-def test_every_bandai_label_has_a_phrase():
-    from model_runtime.data.captions import BANDAI_CONTENT, BANDAI_STYLE, _labels
-    cfgs = sorted(DATA.glob("bandai/dataset-*/cfg"))
-    if not cfgs:
-        pytest.skip("shared Bandai data not present (needs ../shared/data beside the repo)")
-    for cfg in cfgs:
-        assert set(_labels(cfg / "content_label.txt")) <= set(BANDAI_CONTENT)
-        assert set(_labels(cfg / "style_label.txt")) <= set(BANDAI_STYLE)
-
-
-@pytest.mark.parametrize("rel, caption", [
-    ("bandai/dataset-1/data/dataset-1_walk-left_tired_001.bvh", "a person walks to the left, tired"),
-    ("bandai/dataset-1/data/dataset-1_bow_happy_001.bvh", "a person bows, happily"),
-    ("bandai/dataset-1/data/dataset-1_dash_giant_001.bvh", "a person dashes forward, like a giant"),
-    ("bandai/dataset-2/data/dataset-2_wave-left-hand_elderly_001.bvh",
-     "a person waves the left hand, like an elderly person"),
-])
-def test_bandai_captions_from_json_ids(rel, caption):
-    assert caption_for(shared(rel)) == caption
-
-
-def test_cmu_captions_from_the_index():
-    index = shared("cmu/index.csv")
-    assert caption_for(shared("cmu/daz_friendly_120fps/07/07_01.bvh"), index) == "a person walks"
-    assert caption_for(shared("cmu/cc_retarget_60fps/002/002_05.bvh"), index) == "a person punches"
-    assert caption_for(shared("cmu/daz_friendly_120fps/07/07_01.bvh")) is None
-
-
-# ------------------------------------------------------------------------------ Bandai repository checkout
-
-def test_bandai_repository_adds_only_takes_the_data_folder_lacks(tmp_path):
-    """--bandai-repo reads the repository layout, takes content/style from the file name and skips clips
-    the data folder already has, so a larger run never counts a clip twice."""
-    from model_runtime.data.library import bandai_repository_files
-    src = shared("bandai/dataset-2/data/dataset-2_walk-turn-left_normal_001.bvh")
-    data = tmp_path / "repo" / "dataset" / "Bandai-Namco-Research-Motiondataset-2" / "data"
-    data.mkdir(parents=True)
-    (data / src.name).write_bytes(src.read_bytes())                                   # already in shared/data
-    (data / "dataset-2_walk-turn-left_normal_042.bvh").write_bytes(src.read_bytes())  # a take it lacks
-    (data / "README.bvh").write_text("not a take")                                     # not a take name
-    files = bandai_repository_files(tmp_path / "repo", skip={src.stem})
-    assert [(p.name, s, r["content"], r["style"], r["take"]) for p, s, r in files] == [
-        ("dataset-2_walk-turn-left_normal_042.bvh", "bandai", "walk-turn-left", "normal", "042")]
-    assert bandai_caption(files[0][2]["content"], files[0][2]["style"]) == "a person walks and turns left"

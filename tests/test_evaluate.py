@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from model_runtime import evaluate as ev
+from model_runtime.evaluate import main as evaluate_main
+from model_runtime.evaluation import metrics as ev
 from model_runtime.data.library import ClipLibrary, held_out
 from model_runtime.skeleton import rest_joints, standing_pelvis_height
 from model_runtime.voxel import OccupancyGrid
@@ -103,9 +104,10 @@ def test_evaluate_main_smoke(tmp_path, capsys):
                 row["val_loss"] = 1.2 / step
             fh.write(json.dumps(row) + "\n")
     plots = tmp_path / "plots"
-    rc = ev.main(["--data", str(tmp_path / "no_data_needed"), "--library", str(lib_path), "--model", str(model_path),
-                  "--json", "--plots", str(plots), "--logs", str(logs), "--rollouts", "2", "--rollout-frames", "12",
-                  "--scenario-frames", "12", "--seeds", "0", "--windows", "16"])
+    rc = evaluate_main(["--data", str(tmp_path / "no_data_needed"), "--library", str(lib_path),
+                        "--model", str(model_path), "--json", "--plots", str(plots), "--logs", str(logs),
+                        "--rollouts", "2", "--rollout-frames", "12", "--scenario-frames", "12", "--seeds", "0",
+                        "--windows", "16"])
     out = capsys.readouterr().out.strip().splitlines()
     assert rc == 0 and len(out) == 1
     res = json.loads(out[0])
@@ -125,6 +127,6 @@ def test_evaluate_main_smoke(tmp_path, capsys):
 
 
 def test_missing_library_and_data_is_one_line_error(tmp_path, capsys):
-    rc = ev.main(["--data", str(tmp_path / "nowhere"), "--library", str(tmp_path / "none.npz"), "--json"])
+    rc = evaluate_main(["--data", str(tmp_path / "nowhere"), "--library", str(tmp_path / "none.npz"), "--json"])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and len(err.splitlines()) == 1 and err.startswith("error:") and "nowhere" in err

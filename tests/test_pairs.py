@@ -77,7 +77,7 @@ def test_path_analysis_finds_the_turn(lib):
 def test_hhi_pairs_shapes_kinds_and_clearance(lib):
     pairs = build_hhi_pairs(lib, list(range(len(lib))), seed=0, per_clip=3)
     kinds = {(p.ego, p.kind) for p in pairs}
-    assert {(0, "approach_face"), (0, "follow"), (1, "avoid_blocker"), (2, "greet")} <= kinds
+    assert {(0, "approach_face"), (1, "avoid_blocker"), (2, "greet")} <= kinds
     assert all(p.kind in HHI_KINDS for p in pairs)
     for p in pairs:
         ego = clip_joints(lib, p.ego)
@@ -117,11 +117,11 @@ def test_greet_and_blocker_partners_stand_in_front(lib):
     assert abs(rel[0]) < 0.3 and rel[1] < 0          # on the straight-ahead (-Y) line past the turn
 
 
-def test_follow_partner_leads_on_the_path(lib):
-    p = next(p for p in build_hhi_pairs(lib, [0], seed=2, per_clip=2) if p.kind == "follow")
-    ego = clip_joints(lib, 0)
-    lead = (p.partner[:, 0, :2] - ego[:, 0, :2]) @ np.asarray(HEADING0)
-    assert (lead > 0.8).all() and np.abs(p.partner[:, 0, 0] - ego[:, 0, 0]).max() < 0.3
+def test_default_pair_kinds_are_the_trained_ones(lib):
+    """The dropped "follow" rule (a leader walking ahead on the ego's path) is no default kind any more."""
+    kinds = {p.kind for p in build_hhi_pairs(lib, list(range(len(lib))), seed=2, per_clip=3)}
+    assert "follow" not in HHI_KINDS and "follow" not in kinds
+    assert kinds == {"approach_face", "avoid_blocker", "greet"}
 
 
 def test_hsi_scenes_keep_the_real_path_free(lib):
@@ -178,4 +178,4 @@ def test_hhi_pairs_can_be_limited_to_some_kinds(lib):
     some = build_hhi_pairs(lib, list(range(len(lib))), seed=0, per_clip=3, kinds=("approach_face", "greet"))
     assert some and {p.kind for p in some} <= {"approach_face", "greet"}
     assert {p.ego for p in some} >= {0, 2}          # a walk still gets approach_face, a gesture greet
-    assert "follow" in {p.kind for p in everything}   # so the filter did leave something out
+    assert "avoid_blocker" in {p.kind for p in everything}   # so the filter did leave something out

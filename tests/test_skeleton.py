@@ -1,12 +1,11 @@
 import json
 
 import numpy as np
-import pytest
 import torch
 
 from model_runtime import skeleton as sk
 from model_runtime.quat import matrix_to_quat_np
-from paths import SHARED
+from paths import shared_file
 
 
 def test_fk_reproduces_reference_rest_joints():
@@ -17,9 +16,7 @@ def test_fk_reproduces_reference_rest_joints():
 
 
 def test_constants_match_the_reference_file():
-    path = SHARED / "reference" / "smplx_body22.json"
-    if not path.exists():
-        pytest.skip("optional SMPL-X reference file not present")
+    path = shared_file("reference/smplx_body22.json")
     ref = json.loads(path.read_text())
     assert tuple(ref["names"]) == sk.JOINT_NAMES
     assert tuple(ref["parents"]) == sk.PARENTS

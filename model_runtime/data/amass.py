@@ -26,7 +26,7 @@ C = torch.tensor([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 # rest pelvis in SMPL-X's own Y-up frame (reference rest_yup[0]): invert the Z-up conversion
 _PZ = REST_JOINTS_ZUP[0]
 REST_PELVIS_YUP = torch.tensor([_PZ[0], _PZ[2], -_PZ[1]])
-# SMPL-H's rest pelvis sits ~11 cm higher in its template (value quoted in shared/reference/README.md)
+# SMPL-H's rest pelvis sits ~11 cm higher in its template (the root offset public AMASS loaders quote)
 REST_PELVIS_YUP_SMPLH = torch.tensor([-0.00217366, -0.24078917, 0.02858375])
 
 

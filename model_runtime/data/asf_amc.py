@@ -15,21 +15,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from .geometry import euler_matrix
 
 
 def _euler(angles_deg: np.ndarray, order: str = "XYZ") -> np.ndarray:
-    """(..., 3) angles for axes in `order` -> R = R_order[2] @ R_order[1] @ R_order[0] (applied x first)."""
-    a = np.radians(angles_deg)
-    m = np.broadcast_to(np.eye(3), a.shape[:-1] + (3, 3)).copy()
-    for k, ax in enumerate(order.upper()):
-        c, s = np.cos(a[..., k]), np.sin(a[..., k])
-        r = np.zeros(a.shape[:-1] + (3, 3))
-        i = "XYZ".index(ax)
-        j, l = [(1, 2), (2, 0), (0, 1)][i]
-        r[..., i, i] = 1.0
-        r[..., j, j], r[..., j, l], r[..., l, j], r[..., l, l] = c, -s, s, c
-        m = r @ m
-    return m
+    """(..., 3) angles for axes in `order` -> R = R_order[2] @ R_order[1] @ R_order[0] (applied first axis first)."""
+    return euler_matrix(np.asarray(angles_deg)[..., ::-1], order[::-1])
 
 
 @dataclass

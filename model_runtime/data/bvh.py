@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from .geometry import euler_matrix
 
 _CHANNELS = {f"{a}{k}" for a in "xyz" for k in ("position", "rotation")}
 
@@ -54,17 +55,14 @@ class BvhMotion:
         cols = self._columns()
         for j, jt in enumerate(self.joints):
             local_p = np.broadcast_to(jt.offset, (t, 3)).copy()
-            rot = np.broadcast_to(np.eye(3), (t, 3, 3)).copy()
-            pos_seen = False
-            for _, c, ch in (x for x in cols if x[0] == j):
-                axis = "xyz".index(ch[0])
-                if ch.endswith("position"):
-                    if not pos_seen:            # position channels replace the OFFSET as a whole
-                        local_p[:] = 0.0
-                        pos_seen = True
+            mine = [(c, ch) for jj, c, ch in cols if jj == j]
+            pos = [(c, "xyz".index(ch[0])) for c, ch in mine if ch.endswith("position")]
+            if pos:                             # position channels replace the OFFSET as a whole
+                local_p[:] = 0.0
+                for c, axis in pos:
                     local_p[:, axis] = self.data[:, c]
-                else:
-                    rot = rot @ axis_rotation(axis, np.radians(self.data[:, c]))
+            turns = [(c, ch[0]) for c, ch in mine if ch.endswith("rotation")]
+            rot = euler_matrix(self.data[:, [c for c, _ in turns]], "".join(a for _, a in turns))
             if jt.parent < 0:
                 glob_r[:, j], glob_p[:, j] = rot, local_p
             else:
@@ -106,16 +104,6 @@ class BvhMotion:
         """CMU ASF joint names with a 30 fps header: the amc2bvh default that hides 120 fps captures."""
         names = {j.name.lower() for j in self.joints}
         return abs(self.fps - 30.0) < 0.5 and {"lfemur", "ltibia", "lhumerus", "thorax"} <= names
-
-
-def axis_rotation(axis: int, ang: np.ndarray) -> np.ndarray:
-    """Rotations (..., 3, 3) by angles (radians) about the x (0), y (1) or z (2) axis."""
-    c, s = np.cos(ang), np.sin(ang)
-    m = np.zeros(np.shape(ang) + (3, 3))
-    a, b = [(1, 2), (2, 0), (0, 1)][axis]
-    m[..., axis, axis] = 1.0
-    m[..., a, a], m[..., a, b], m[..., b, a], m[..., b, b] = c, -s, s, c
-    return m
 
 
 def _numbers(tok: list[str], n: int, name: str, line: int, what: str) -> np.ndarray:

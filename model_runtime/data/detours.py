@@ -1,6 +1,6 @@
 """Synthetic arrivals and detours: the scene reaction the open data does not hold.
 
-Issue 3's box scenario asks the ego to walk around a box on the straight line to a goal and stop there. No clip
+The box scenario (evaluation) asks the ego to walk around a box on the straight line to a goal and stop there. No clip
 in CMU or Bandai Namco does either: a scan of the 4 h library found no walk that ends standing (all 645
 Bandai dataset-2 walks start and end mid-stride) and no walk around an obstacle. Measured without this: the HSI
 module left the ego 20 % of frames inside the box and 3.0 m from the goal (it walked on past it). So the HSI
@@ -166,7 +166,7 @@ def add_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[
         pool = pools[lib.is_held_out(i)] or stands
         if not pool:
             break
-        a, t = int(lib.offsets[i]), lib.frames(i)
+        a = int(lib.offsets[i])
         rng = np.random.default_rng([seed, int(i), 11])
         for k, kind in enumerate(COPIES):
             walk = int(rng.integers(WALK_FRAMES[0], WALK_FRAMES[1] + 1))

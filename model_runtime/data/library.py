@@ -3,13 +3,13 @@
 Reading ~500 BVH files and retargeting them takes minutes, so `prepare` does it once and training
 reloads the cache. Clips keep their source and licence so a CMU-only (commercial-use) recipe can
 always be rebuilt, and a deterministic held-out split by clip name so evaluation never sees training
-clips.
+clips: about 10 % of the clips, and never none or all of them when there are two or more.
 """
 from __future__ import annotations
 
-import csv
 import hashlib
 import os
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,11 +41,28 @@ def derived_kind(name: str) -> str:
     return name.split(DERIVED, 1)[1].rstrip("0123456789") if is_derived(name) else ""
 
 
+def _split_key(name: str) -> int:
+    """0..999 from the hash of the source clip's name: below 1000 * fraction is held out."""
+    return int(hashlib.sha1(source_name(name).encode()).hexdigest()[:8], 16) % 1000
+
+
 def held_out(name: str, fraction: float = 0.1) -> bool:
     """Deterministic split by clip name (stable across machines and runs). A derived clip falls on its
-    source's side, so no source leaks across the split."""
-    h = int(hashlib.sha1(source_name(name).encode()).hexdigest()[:8], 16)
-    return (h % 1000) < fraction * 1000
+    source's side, so no source leaks across the split. ClipLibrary.split adds the guarantee of at least one
+    held-out and one training clip."""
+    return _split_key(name) < fraction * 1000
+
+
+def held_out_sources(names: list[str]) -> set[str]:
+    """The source clip names held out for validation: those `held_out` picks and, among two or more sources,
+    never none or all of them (the source nearest the cut moves across)."""
+    sources = sorted({source_name(n) for n in names})
+    val = {s for s in sources if held_out(s)}
+    if len(sources) >= 2 and not val:
+        val = {min(sources, key=_split_key)}
+    elif len(sources) >= 2 and len(val) == len(sources):
+        val.discard(max(sources, key=_split_key))
+    return val
 
 
 @dataclass
@@ -58,6 +75,7 @@ class ClipLibrary:
     offsets: np.ndarray                # (n_clips + 1,) int64 clip i is frames offsets[i]:offsets[i+1]
     fit_error_mm: list[float] = field(default_factory=list)
     _features: dict = field(default_factory=dict, repr=False)
+    _held_out: tuple[int, set[str]] = field(default=(-1, set()), repr=False)   # (len(names), held_out_sources)
 
     def __len__(self) -> int:
         return len(self.names)
@@ -66,7 +84,9 @@ class ClipLibrary:
         return int(self.offsets[i + 1] - self.offsets[i])
 
     def is_held_out(self, i: int) -> bool:
-        return held_out(self.names[i])
+        if self._held_out[0] != len(self.names):
+            self._held_out = (len(self.names), held_out_sources(self.names))
+        return source_name(self.names[i]) in self._held_out[1]
 
     def split(self, which: str, min_frames: int = 0) -> list[int]:
         """Indices of 'train' or 'val' clips with at least min_frames frames."""
@@ -99,11 +119,16 @@ class ClipLibrary:
 
     # ---------------------------------------------------------------- persistence
     def save(self, path: str | os.PathLike) -> Path:
+        """Write the library to exactly `path` (through a temporary file, so an interrupted write leaves no
+        half file)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(path, names=np.asarray(self.names), captions=np.asarray(self.captions),
-                            sources=np.asarray(self.sources), rotations=self.rotations, pelvis=self.pelvis,
-                            offsets=self.offsets, fit_error_mm=np.asarray(self.fit_error_mm, np.float32))
+        tmp = path.with_name(path.name + ".part")
+        with tmp.open("wb") as fh:
+            np.savez_compressed(fh, names=np.asarray(self.names), captions=np.asarray(self.captions),
+                                sources=np.asarray(self.sources), rotations=self.rotations, pelvis=self.pelvis,
+                                offsets=self.offsets, fit_error_mm=np.asarray(self.fit_error_mm, np.float32))
+        os.replace(tmp, path)
         return path
 
     @classmethod
@@ -111,12 +136,17 @@ class ClipLibrary:
         path = Path(path)
         if not path.exists():
             raise InputError(f"clip library {path} not found; build it with "
-                             "python -m model_runtime.data.prepare --data ../shared/data")
-        with np.load(path, allow_pickle=False) as z:
-            return cls([str(s) for s in z["names"]], [str(s) for s in z["captions"]],
-                       [str(s) for s in z["sources"]], z["rotations"].astype(np.float32),
-                       z["pelvis"].astype(np.float32), z["offsets"].astype(np.int64),
-                       [float(x) for x in z["fit_error_mm"]])
+                             f"python -m model_runtime.data.prepare --data MOTION_FOLDER --out {path}")
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                return cls([str(s) for s in z["names"]], [str(s) for s in z["captions"]],
+                           [str(s) for s in z["sources"]], z["rotations"].astype(np.float32),
+                           z["pelvis"].astype(np.float32), z["offsets"].astype(np.int64),
+                           [float(x) for x in z["fit_error_mm"]])
+        except (KeyError, ValueError, OSError, zipfile.BadZipFile) as exc:
+            why = " ".join(str(exc).split())[:80]
+            raise InputError(f"{path} is not a clip library ({type(exc).__name__}: {why}); "
+                             "build one with python -m model_runtime.data.prepare") from None
 
     @classmethod
     def from_motions(cls, motions: list, names: list[str], sources: list[str]) -> "ClipLibrary":
@@ -129,38 +159,3 @@ class ClipLibrary:
         errors = [float((getattr(m, "fit_error_mm", None) or {}).get("mean", float("nan"))) for m in motions]
         return cls(list(names), [m.caption or "" for m in motions], list(sources), np.concatenate(rot),
                    np.concatenate(pel), np.asarray(off, np.int64), errors)
-
-
-def shared_data_files(data_dir: str | os.PathLike, cmu_only: bool = False) -> list[tuple[Path, str, dict]]:
-    """(path, source, index row) for every clip of the project's data folder, using its index.csv files."""
-    data_dir = Path(data_dir)
-    out = []
-    for source, sub in (("cmu", "cmu"), ("bandai", "bandai")):
-        if cmu_only and source != "cmu":
-            continue
-        index = data_dir / sub / "index.csv"
-        if not index.exists():
-            continue
-        with index.open(newline="") as fh:
-            for row in csv.DictReader(fh):
-                rel = row.get("file") or row.get("path") or ""
-                p = data_dir / sub / rel
-                if p.suffix.lower() == ".bvh" and p.exists():
-                    out.append((p, source, row))
-    return out
-
-
-def bandai_repository_files(repo_dir: str | os.PathLike, skip: set[str] = frozenset()) -> list[tuple[Path, str, dict]]:
-    """(path, "bandai", row) for every BVH of a checkout of the Bandai Namco repository
-    (`dataset/Bandai-Namco-Research-Motiondataset-{1,2}/data/*.bvh`), for a larger training run than the
-    project's data folder holds (it keeps 3 takes per content/style of dataset-2; the repository has 2,902).
-    Content and style come from the file name `dataset-N_<content>_<style>_<take>.bvh`; stems in `skip`
-    (clips already read from the data folder) are left out so no clip is counted twice."""
-    root = Path(repo_dir)
-    out = []
-    for p in sorted(root.glob("dataset/Bandai-Namco-Research-Motiondataset-*/data/*.bvh")):
-        parts = p.stem.split("_")
-        if len(parts) != 4 or p.stem in skip:
-            continue
-        out.append((p, "bandai", {"file": p.name, "content": parts[1], "style": parts[2], "take": parts[3]}))
-    return out

@@ -32,6 +32,7 @@ from ..errors import InputError
 from ..skeleton import (FOOT_JOINTS, JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS, SOLE_BELOW_FOOT_JOINT,
                         forward_kinematics, global_to_local, rest_joints, rest_offsets)
 from .bone_maps import NameIndex, parse_spec
+from .geometry import axis_angle_rotation, normalized, perpendicular_part, rotation_between, two_vector_rotation
 
 # Y-up source -> Blender Z-up: x' = x, y' = -z, z' = y
 Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
@@ -40,10 +41,6 @@ J = JOINT_INDEX
 _REST = rest_joints(torch.float64).numpy()
 _OFF = rest_offsets(torch.float64).numpy()
 _SPINE = [J["pelvis"], J["spine1"], J["spine2"], J["spine3"], J["neck"]]
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
 # ------------------------------------------------------------------------------ bone map -> targets
@@ -90,7 +87,7 @@ def up_axis_rotation(targets: np.ndarray) -> tuple[np.ndarray, str]:
         return Y_UP_TO_Z_UP.copy(), name        # the convention the rest of the project uses
     up = np.zeros(3)
     up[k] = sign
-    return _rotation_between(up[None], np.array([[0.0, 0.0, 1.0]]))[0], name
+    return rotation_between(up[None], np.array([[0.0, 0.0, 1.0]]))[0], name
 
 
 # hip height above the soles -> metres per file unit
@@ -125,51 +122,6 @@ def leg_length(joints: np.ndarray) -> float:
     return total / 2
 
 
-# ------------------------------------------------------------------------------ rotation helpers
-
-def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Smallest rotations (T, 3, 3) taking directions a onto b (T, 3)."""
-    a, b = _unit(a), _unit(b)
-    axis = np.cross(a, b)
-    s = np.linalg.norm(axis, axis=-1)
-    c = (a * b).sum(-1)
-    # antiparallel: turn half way round any axis perpendicular to a
-    perp = np.cross(a, np.array([1.0, 0.0, 0.0]))
-    perp = np.where(np.linalg.norm(perp, axis=-1, keepdims=True) < 1e-6, np.cross(a, [0.0, 1.0, 0.0]), perp)
-    axis = np.where((s < 1e-9)[:, None], _unit(perp), axis / np.maximum(s, 1e-12)[:, None])
-    angle = np.arctan2(s, c)
-    return _axis_angle(axis, angle)
-
-
-def _axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    x, y, z = axis[:, 0], axis[:, 1], axis[:, 2]
-    c, s = np.cos(angle), np.sin(angle)
-    t = 1 - c
-    return np.stack([np.stack([t * x * x + c, t * x * y - s * z, t * x * z + s * y], -1),
-                     np.stack([t * x * y + s * z, t * y * y + c, t * y * z - s * x], -1),
-                     np.stack([t * x * z - s * y, t * y * z + s * x, t * z * z + c], -1)], -2)
-
-
-def _frame(primary: np.ndarray, secondary: np.ndarray) -> np.ndarray:
-    """Orthonormal frames (T, 3, 3) whose first column is `primary` and second is `secondary`'s part
-    perpendicular to it."""
-    a = _unit(primary)
-    b = _unit(secondary - (secondary * a).sum(-1, keepdims=True) * a)
-    return np.stack([a, b, np.cross(a, b)], -1)
-
-
-def _two_vector(rest_a: np.ndarray, rest_b: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Rotation taking rest direction rest_a exactly onto a, and rest_b as near as possible to b."""
-    f0 = _frame(np.broadcast_to(rest_a, a.shape), np.broadcast_to(rest_b, b.shape))
-    return _frame(a, b) @ np.swapaxes(f0, -1, -2)
-
-
-def _perp(v: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Part of v perpendicular to the unit axis, and its length relative to |v| (0 = parallel)."""
-    p = v - (v * axis).sum(-1, keepdims=True) * axis
-    return p, np.linalg.norm(p, axis=-1) / np.maximum(np.linalg.norm(v, axis=-1), 1e-12)
-
-
 # ------------------------------------------------------------------------------ IK targets
 
 _REST_HIP_MID = 0.5 * (_REST[J["left_hip"]] + _REST[J["right_hip"]])
@@ -179,7 +131,7 @@ def _pelvis_frame(side: np.ndarray, torso: np.ndarray) -> np.ndarray:
     """Rotation from the rest pelvis frame to the one given by the hip axis (exact) and an up vector
     in the torso's terms (rest: hip midpoint -> neck; see `_pelvis_up`)."""
     rest_side = _REST[J["left_hip"]] - _REST[J["right_hip"]]
-    return _two_vector(rest_side, _REST[J["neck"]] - _REST_HIP_MID, side, torso)
+    return two_vector_rotation(rest_side, _REST[J["neck"]] - _REST_HIP_MID, side, torso)
 
 
 def _pelvis_up(src: np.ndarray, hip_mid: np.ndarray, neck: np.ndarray) -> np.ndarray:
@@ -190,19 +142,19 @@ def _pelvis_up(src: np.ndarray, hip_mid: np.ndarray, neck: np.ndarray) -> np.nda
     turned about the hip axis by the clip's median angle between that line and the torso (which
     removes where the rig happens to put that joint). Without such a joint: the torso itself."""
     torso = neck - hip_mid
-    side = _unit(src[:, J["left_hip"]] - src[:, J["right_hip"]])
+    side = normalized(src[:, J["left_hip"]] - src[:, J["right_hip"]])
     for j in (J["spine1"], J["spine2"], J["spine3"]):
         low = src[:, j] - hip_mid
         if np.median(np.linalg.norm(low, axis=-1)) > 0.03:
             break
     else:
         return torso
-    a, _ = _perp(low, side)
-    b, _ = _perp(torso, side)
+    a, _ = perpendicular_part(low, side)
+    b, _ = perpendicular_part(torso, side)
     theta = np.arctan2((np.cross(a, b) * side).sum(-1), (a * b).sum(-1))      # about the hip axis
     mid = np.median(theta)
-    turn = _axis_angle(side, np.full(len(side), mid))
-    return (turn @ _unit(a)[..., None])[..., 0] * np.linalg.norm(torso, axis=-1, keepdims=True)
+    turn = axis_angle_rotation(side, np.full(len(side), mid))
+    return (turn @ normalized(a)[..., None])[..., 0] * np.linalg.norm(torso, axis=-1, keepdims=True)
 
 
 def ik_targets(src: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -257,8 +209,8 @@ def solve_rotations(targets: np.ndarray, pelvis_rot: np.ndarray | None = None) -
     side_chest = tg[:, J["left_shoulder"]] - tg[:, J["right_shoulder"]]
     rest_side_hips = _REST[J["left_hip"]] - _REST[J["right_hip"]]
     rest_side_chest = _REST[J["left_shoulder"]] - _REST[J["right_shoulder"]]
-    hips_u, chest_u = _unit(side_hips), _unit(side_chest)
-    rest_hips_u, rest_chest_u = _unit(rest_side_hips), _unit(rest_side_chest)
+    hips_u, chest_u = normalized(side_hips), normalized(side_chest)
+    rest_hips_u, rest_chest_u = normalized(rest_side_hips), normalized(rest_side_chest)
     # twist shared out along the spine: spine1 mostly hips, spine3 and neck the shoulders
     side_mix = {J["spine1"]: 2 / 3, J["spine2"]: 1 / 3, J["spine3"]: 0.0, J["neck"]: 0.0}
 
@@ -275,10 +227,10 @@ def solve_rotations(targets: np.ndarray, pelvis_rot: np.ndarray | None = None) -
         c = kids[0] if len(kids) == 1 else J["neck"]
         aim = _aim(j, c, tg, pos)
         rest_aim = _OFF[c]
-        swing = _rotation_between(glob[:, p] @ rest_aim, aim) @ glob[:, p]
+        swing = rotation_between(glob[:, p] @ rest_aim, aim) @ glob[:, p]
         if j in side_mix:
             w = side_mix[j]
-            glob[:, j] = _two_vector(rest_aim, w * rest_hips_u + (1 - w) * rest_chest_u,
+            glob[:, j] = two_vector_rotation(rest_aim, w * rest_hips_u + (1 - w) * rest_chest_u,
                                      aim, w * hips_u + (1 - w) * chest_u)
         elif JOINT_NAMES[j].endswith(("_hip", "_shoulder")):
             glob[:, j] = _limb_root(c, aim, rest_aim, swing, tg)
@@ -312,20 +264,20 @@ def _limb_root(c: int, aim: np.ndarray, rest_aim: np.ndarray, swing: np.ndarray,
     """Hip or shoulder: aimed at its child c (knee / elbow), twisted so the limb bends in its hinge plane."""
     g = JOINT_NAMES[c]
     end = J[g.replace("knee", "ankle").replace("elbow", "wrist")]
-    a = _unit(aim)
-    bend, rel = _perp(tg[:, end] - tg[:, c], a)
+    a = normalized(aim)
+    bend, rel = perpendicular_part(tg[:, end] - tg[:, c], a)
     # knees bend backwards (+Y on the rest body, which faces -Y); elbows forwards
     rest_bend = np.array([0.0, 1.0, 0.0]) if g.endswith("knee") else np.array([0.0, -1.0, 0.0])
     fallback = swing @ rest_bend                        # the twist the plain swing would give
     if g.endswith("knee"):
         toes = tg[:, J[g.replace("knee", "foot")]] - tg[:, end]
-        back, rel_t = _perp(-toes, a)
+        back, rel_t = perpendicular_part(-toes, a)
         wt = _bend_weight(rel_t)
-        fallback = wt * _unit(back) + (1 - wt) * fallback
+        fallback = wt * normalized(back) + (1 - wt) * fallback
     w = _bend_weight(rel)
-    second = w * _unit(bend) + (1 - w) * _perp(fallback, a)[0]
+    second = w * normalized(bend) + (1 - w) * perpendicular_part(fallback, a)[0]
     ok = (np.linalg.norm(second, axis=-1) > 1e-6)[:, None, None]
-    return np.where(ok, _two_vector(rest_aim, rest_bend, aim, second), swing)
+    return np.where(ok, two_vector_rotation(rest_aim, rest_bend, aim, second), swing)
 
 
 # ------------------------------------------------------------------------------ the whole step
@@ -354,7 +306,7 @@ def retarget(source: np.ndarray, unit: float | None = None, up: str | None = Non
     else:
         v = np.zeros(3)
         v["XYZ".index(up[-1].upper())] = -1.0 if up.startswith("-") else 1.0
-        rot = Y_UP_TO_Z_UP if up.upper() in ("Y", "+Y") else _rotation_between(v[None], np.array([[0, 0, 1.0]]))[0]
+        rot = Y_UP_TO_Z_UP if up.upper() in ("Y", "+Y") else rotation_between(v[None], np.array([[0, 0, 1.0]]))[0]
     pts = source @ rot.T
     unit_name = "given"
     if unit is None and unit_hint is not None and 0.5 <= _hip_height(pts * unit_hint) < 1.5:
@@ -390,8 +342,8 @@ def fit_error(joints: np.ndarray, targets: np.ndarray) -> dict:
     err = np.linalg.norm(d, axis=-1) * 1000.0
     legs = sorted(_LEGS | {J["left_foot"], J["right_foot"]})
     par = list(PARENTS[1:])
-    a = _unit(joints[:, 1:] - joints[:, par])
-    b = _unit(targets[:, 1:] - targets[:, par])
+    a = normalized(joints[:, 1:] - joints[:, par])
+    b = normalized(targets[:, 1:] - targets[:, par])
     ang = np.degrees(np.arccos(np.clip((a * b).sum(-1), -1.0, 1.0)))
     return {"mean": float(err.mean()), "max": float(err.max()), "legs_mean": float(err[:, legs].mean()),
             "dir_deg": float(ang.mean())}

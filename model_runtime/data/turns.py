@@ -1,6 +1,6 @@
 """Synthetic in-place turns: the one reaction the HHI stage needs that the open data does not hold.
 
-Turning on the spot to face someone who walks up is what issue 3's partner scenario asks for, and no clip in
+Turning on the spot to face someone who walks up is what the partner scenario (evaluation) asks for, and no clip in
 CMU or Bandai Namco shows it (their turns happen mid-walk). Measured without this: an ego standing side-on to
 an approaching partner ended 102-103 deg off with or without the HHI module. So the HHI stage also trains on
 turned copies of real standing clips: from a frame near the start, the whole body turns rigidly about the

@@ -161,13 +161,11 @@ def test_ego_deleted_mid_run_stops_cleanly(fresh):
 
 
 def test_imported_cmu_bvh_partner(fresh):
-    """A real rig: Blender's BVH importer on a shared CMU clip (DAZ names) is mapped and drives live."""
+    """A real rig: Blender's BVH importer on a CMU clip of the test data (DAZ names) is mapped and drives live."""
     import addon_utils
-    from paths import SHARED
     from remogen_blender import live, rig
-    bvh = SHARED / "data" / "cmu" / "daz_friendly_120fps" / "05" / "05_01.bvh"
-    if not bvh.is_file():
-        pytest.skip("shared CMU data not available")
+    from paths import shared_file
+    bvh = shared_file("data/cmu/daz_friendly_120fps/05/05_01.bvh")
     addon_utils.enable("io_anim_bvh")
     try:
         bpy.ops.import_anim.bvh(filepath=str(bvh), global_scale=0.01, axis_forward='-Z', axis_up='Y',

@@ -1,0 +1,195 @@
+"""One stage's training loop: run or resume, validate with the EMA weights, save a resumable state every few
+minutes and the EMA model at the end; under torchrun the ranks train data-parallel and stop together."""
+from __future__ import annotations
+
+import gc
+import json
+import os
+import time
+from pathlib import Path
+
+import torch
+import torch.distributed as dist
+
+from ..checkpoint import load_model, save_model
+from ..config import ModelConfig, resolve_config
+from ..data.library import ClipLibrary
+from ..errors import RemogenError
+from ..model import ReMoGenModel
+from .ema import EMA
+from .recipe import DEFAULT_STEPS, RECIPE
+from .report import StageRun, say, validation_history
+from .samples import SegmentSampler
+from .setup import build_samplers, check_library, decoder_sensitivity, fit_stats
+from .stages import STAGES, StageLoss, freeze_for, trainable_module
+
+
+def rank_and_world() -> tuple[int, int]:
+    if dist.is_available() and dist.is_initialized():
+        return dist.get_rank(), dist.get_world_size()
+    return 0, 1
+
+
+def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "default", steps: int | None = None,
+                batch: int | None = None, lr: float | None = None, seed: int = 0, minutes: float | None = None,
+                ckpt_minutes: float = 3.0, val_every: int = 250, val_batches: int = 4,
+                progress: bool = True) -> StageRun:
+    """Run (or resume) one stage: what was written and how far it got."""
+    if stage not in STAGES:
+        raise RemogenError(f"unknown stage {stage!r}; use one of {', '.join(STAGES)}")
+    check_library(lib, resolve_config(config))
+    rank, world = rank_and_world()
+    note = (lambda msg: say(f"{stage}: {msg}")) if progress and rank == 0 else (lambda msg: None)
+    batch = batch or RECIPE[stage][1]
+    lr = lr or RECIPE[stage][2]
+    out.mkdir(parents=True, exist_ok=True)
+    model_path, state_path, log_path = out / "model.pt", out / f"{stage}.state.pt", out / f"{stage}.log.jsonl"
+    torch.manual_seed(seed + rank)
+    st = torch.load(state_path, map_location="cpu", weights_only=True) if state_path.exists() else None
+    if st is not None:  # resume: the whole model as it was, stats included
+        note(f"resuming at step {int(st['step']):,} from {state_path}")
+        model = ReMoGenModel(ModelConfig.from_dict(st["config"]))
+        model.load_state_dict(st["model"])
+        model.meta = dict(st["meta"])
+    elif stage == "vae":
+        model = ReMoGenModel(resolve_config(config))
+        note(f"fitting feature statistics on {len(lib.split('train'))} training clips ...")
+        fit_stats(model, lib, lib.split("train"), seed=seed)
+    else:
+        if not model_path.exists():
+            raise RemogenError(f"{model_path} not found: train the stages before '{stage}' first "
+                               f"({' -> '.join(STAGES)})")
+        note(f"starting from {model_path}")
+        model = load_model(model_path)
+    params = freeze_for(model, stage)
+    module = trainable_module(model, stage)
+    if st is None and stage in ("hhi", "hsi", "fwsr"):
+        # A fresh start of an adapter stage re-initialises the whole module (seeded), so the result does not
+        # depend on an earlier run's weights left in model.pt (measured: HHI warm-started from a run with
+        # other pair kinds kept that run's behaviour), then zero-inits it into an exact no-op.
+        fresh = trainable_module(ReMoGenModel(model.cfg), stage)
+        module.load_state_dict(fresh.state_dict())
+        module.zero_init()
+    if st is None and stage == "fwsr":
+        note("measuring the decoder's sensitivity ...")
+        decoder_sensitivity(model, lib, seed)
+    loss_mod = StageLoss(model, stage)
+    ddp = torch.nn.parallel.DistributedDataParallel(loss_mod) if world > 1 else loss_mod
+    opt = torch.optim.AdamW(params, lr=lr, weight_decay=0.01)
+    ema = EMA(params)
+    gen = torch.Generator().manual_seed(seed * 7919 + rank)
+    step, wall = 0, 0.0
+    total = steps or DEFAULT_STEPS[stage]
+    if st is not None:
+        opt.load_state_dict(st["optim"])
+        for s, v in zip(ema.shadow, st["ema"]):
+            s.copy_(v)
+        ema.updates = int(st.get("ema_updates", st["step"]))
+        gen.set_state(st["gen"])
+        step, wall = int(st["step"]), float(st["wall"])
+        total = int(st.get("total", total)) if steps is None else total
+    tr, va = build_samplers(stage, model, lib, seed, rank, note)
+    bar = None
+    if progress and rank == 0:
+        from tqdm import tqdm
+        bar = tqdm(total=total, initial=step, desc=f"train {stage}", unit="step", dynamic_ncols=True)
+    t_start, last_ckpt = time.time(), time.time()
+    deadline = t_start + minutes * 60 if minutes else None
+
+    def save_state() -> None:
+        if rank != 0:
+            return
+        tmp = state_path.with_suffix(".tmp")
+        torch.save({"config": model.cfg.to_dict(), "model": model.state_dict(), "meta": model.meta,
+                    "optim": opt.state_dict(), "ema": ema.shadow, "ema_updates": ema.updates,
+                    "gen": gen.get_state(), "step": step, "wall": wall + time.time() - t_start,
+                    "total": total}, tmp)
+        os.replace(tmp, state_path)
+
+    try:
+        with log_path.open("a") as log:
+            while step < total:
+                b = tr.sample(batch, fwsr=(stage == "fwsr"))
+                loss, parts = ddp(b, gen)
+                opt.zero_grad(set_to_none=True)
+                loss.backward()
+                torch.nn.utils.clip_grad_norm_(params, 1.0)
+                opt.step()
+                ema.update()
+                step += 1
+                last = step == total or past_deadline(deadline, world)   # a run cut short still validates
+                row = {"stage": stage, "step": step, "loss": float(loss.detach()), **parts}
+                if va is not None and (step % val_every == 0 or last):
+                    row["val_loss"] = validate(loss_mod, module, ema, va, val_batches, batch, stage)
+                if rank == 0:
+                    log.write(json.dumps(row) + "\n")
+                    if bar is not None:
+                        bar.update(1)
+                        bar.set_postfix(loss=f"{row['loss']:.4f}", **({"val": f"{row['val_loss']:.4f}"}
+                                                                      if "val_loss" in row else {}))
+                if time.time() - last_ckpt > ckpt_minutes * 60:
+                    log.flush()
+                    save_state()
+                    last_ckpt = time.time()
+                if last:
+                    break
+    except KeyboardInterrupt:
+        if bar is not None:
+            bar.close()
+        if world == 1:
+            save_state()   # Ctrl-C keeps the steps done so far: rerunning the command resumes here
+        raise
+    if bar is not None:
+        bar.close()
+    save_state()
+    if rank == 0:
+        ema.swap()
+        model.eval()
+        meta = dict(model.meta)
+        stages = dict(meta.get("stages", {}))
+        stages[stage] = {"steps": step, "wall_s": round(wall + time.time() - t_start, 1), "batch": batch,
+                         "lr": lr, "world_size": world, "clips": len(lib.split("train")),
+                         "val_loss": ([None] + [v for _, v in validation_history(log_path)])[-1]}
+        meta.update({"trained": True, "stages": stages, "sources": sorted(set(lib.sources)),
+                     "non_commercial": "bandai" in set(lib.sources)})
+        model.meta = meta
+        save_model(model, model_path)
+        ema.swap()
+    if world > 1:
+        # every rank leaves together: the next stage of `all` loads the model.pt rank 0 just wrote, and a rank
+        # that tore down the process group while rank 0 was still saving was seen to abort (SIGABRT) in CI
+        dist.barrier()
+        # release the DDP wrapper (its reducer holds gloo work objects) while the process group is still alive,
+        # not at interpreter exit after destroy_process_group: a late free there is a known gloo abort path
+        del ddp
+        gc.collect()
+    return StageRun(stage, model_path, state_path, log_path, step, total, time.time() - t_start)
+
+
+@torch.no_grad()
+def validate(loss_mod: StageLoss, module: torch.nn.Module, ema: EMA, va: SegmentSampler, batches: int,
+             batch: int, stage: str) -> float:
+    """Held-out loss with the EMA weights, in eval mode, with a fixed validation RNG."""
+    ema.swap()
+    module.eval()
+    try:   # the live weights come back even when Ctrl-C lands here (the state saved then must hold them)
+        gen = torch.Generator().manual_seed(1234)
+        va.gen.manual_seed(4321)
+        total = 0.0
+        for _ in range(batches):
+            total += float(loss_mod(va.sample(batch, fwsr=(stage == "fwsr")), gen)[0])
+    finally:
+        module.train()
+        ema.swap()
+    return total / batches
+
+
+def past_deadline(deadline: float | None, world: int) -> bool:
+    """Whether --minutes is up. Under DDP rank 0's clock decides for all ranks (one tiny broadcast per step):
+    ranks that stopped on their own clocks would leave the others waiting in an all-reduce forever."""
+    if deadline is None:
+        return False
+    done = torch.tensor([float(time.time() >= deadline)])
+    if world > 1:
+        dist.broadcast(done, 0)
+    return bool(done.item())

@@ -1,0 +1,96 @@
+"""What a stage needs before its first step: a library that can train at all, feature statistics, the
+samplers (with generated partners and scenes for the interaction stages) and the decoder's sensitivity."""
+from __future__ import annotations
+
+from typing import Callable
+
+import torch
+
+from ..config import ModelConfig
+from ..data.library import ClipLibrary
+from ..errors import RemogenError
+from ..model import ReMoGenModel
+from .samples import SegmentSampler
+
+
+def fit_stats(model: ReMoGenModel, lib: ClipLibrary, clip_ids: list[int], samples: int = 20000, seed: int = 0) -> None:
+    """Feature mean/std from canonicalised training segments (computed once, reused by every later stage)."""
+    from ..features import canonicalize
+    gen = torch.Generator().manual_seed(seed)
+    cfg = model.cfg
+    span = cfg.history + cfg.future
+    ids = [i for i in clip_ids if lib.frames(i) - 1 >= span]
+    rows = []
+    per = max(1, samples // max(1, len(ids)))
+    for i in ids:
+        feats = lib.features(i)
+        # all of a clip's windows canonicalised in one batch (one call per window took minutes on a large library)
+        starts = torch.randint(0, feats.shape[0] - span + 1, (per,), generator=gen)
+        rows.append(canonicalize(feats[starts[:, None] + torch.arange(span)])[0].reshape(-1, feats.shape[-1]))
+    model.stats.fit(torch.cat(rows))
+
+
+def check_library(lib: ClipLibrary, cfg: ModelConfig) -> None:
+    """Fail at once, before minutes of set-up, when the library cannot give training and held-out segments."""
+    need = cfg.history + cfg.future + 1
+    if len(lib) < 2:
+        raise RemogenError(f"the clip library has {len(lib)} clip{'' if len(lib) == 1 else 's'}; training needs at "
+                           "least 2 (one is held out for validation): add motion files and run "
+                           "python -m model_runtime.data.prepare again")
+    train_ids, val_ids = lib.split("train", min_frames=need), lib.split("val", min_frames=need)
+    if not train_ids or not val_ids:
+        raise RemogenError(f"training needs a training clip and a held-out clip of at least {need} frames "
+                           f"({need / 10:g} s at 10 fps); the library has {len(train_ids)} and {len(val_ids)}: "
+                           "add longer clips")
+
+
+def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int, rank: int,
+                   note: Callable[[str], None] = lambda msg: None
+                   ) -> tuple[SegmentSampler, SegmentSampler | None]:
+    """Training and validation samplers for a stage (interaction stages get generated pairs/scenes); no
+    validation sampler (None) when no held-out clip fits the stage's pair rules."""
+    train_ids, val_ids = lib.split("train"), lib.split("val")
+    pairs_tr = pairs_va = scenes_tr = scenes_va = None
+    if stage in ("hhi", "fwsr"):
+        from ..data.pairs import build_hhi_pairs
+        from ..data.turns import add_pivot_turns
+        note(f"building partners for {len(train_ids) + len(val_ids)} clips (turned copies of standing clips, "
+             "then HHI pairs) ...")
+        # turned copies of standing clips: the data has no turn on the spot (data/turns.py)
+        lib, turned = add_pivot_turns(lib, train_ids + val_ids, seed=seed)
+        train_ids = train_ids + [i for i in turned if not lib.is_held_out(i)]
+        val_ids = val_ids + [i for i in turned if lib.is_held_out(i)]
+        pairs_tr = build_hhi_pairs(lib, train_ids, seed=seed)
+        pairs_va = build_hhi_pairs(lib, val_ids, seed=seed + 1)
+        note(f"{len(pairs_tr)} training and {len(pairs_va)} held-out HHI pairs")
+        if not pairs_tr:
+            raise RemogenError(f"no training clip fits an HHI pair rule (walks, turns, gestures, standing clips), so "
+                               f"the {stage} stage cannot train on this library; the stages before it are saved")
+    if stage == "hsi":
+        from ..data.detours import add_arrivals
+        from ..data.pairs import build_hsi_scenes
+        note(f"building scenes for {len(train_ids) + len(val_ids)} clips (detour copies of straight walks, then "
+             "obstacles and goals) ...")
+        # detour-and-stop copies of straight walks: the data has no stop at a target, no walk around anything
+        lib, arrivals = add_arrivals(lib, train_ids + val_ids, seed=seed)
+        train_ids = train_ids + [i for i in arrivals if not lib.is_held_out(i)]
+        val_ids = val_ids + [i for i in arrivals if lib.is_held_out(i)]
+        scenes_tr = build_hsi_scenes(lib, train_ids, seed=seed)
+        scenes_va = build_hsi_scenes(lib, val_ids, seed=seed + 1)
+        note(f"{len(scenes_tr)} training and {len(scenes_va)} held-out HSI scenes")
+    tr = SegmentSampler(lib, train_ids, model.cfg, model.stats, seed=seed * 1000 + rank, pairs=pairs_tr,
+                        scenes=scenes_tr)
+    if pairs_va == [] or scenes_va == []:
+        note(f"note: no held-out clip fits the {stage} stage's rules: it trains without a held-out loss")
+        return tr, None
+    va = SegmentSampler(lib, val_ids, model.cfg, model.stats, seed=seed + 7, pairs=pairs_va, scenes=scenes_va)
+    return tr, va
+
+
+def decoder_sensitivity(model: ReMoGenModel, lib: ClipLibrary, seed: int) -> None:
+    """Finite-difference decoder sensitivity on real training segments (stored in the checkpoint)."""
+    s = SegmentSampler(lib, lib.split("train"), model.cfg, model.stats, seed=seed)
+    b = s.sample(32)
+    with torch.no_grad():
+        z, _ = model.vae.encode(b.hist, b.fut)
+    model.compute_decoder_sensitivity(b.hist, z)
