@@ -2,6 +2,7 @@
 
     python -m model_runtime.evaluate --library runs/clips.npz --json [--model PATH] [--plots runs/eval]
     python -m model_runtime.evaluate --data MOTION_FOLDER ...   # builds the clip cache first when it is missing
+    python -m model_runtime.evaluate --behaviour --split val --json --plots DIR   # the behaviour suite
 
 Runs only on the clip library's held-out split (ClipLibrary.split("val")), never on training clips, and
 prints one JSON object:
@@ -132,8 +133,15 @@ def evaluate(model, lib, *, clips: int | None = None, windows: int | None = 512,
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if "--behaviour" in argv:   # the scenario-distribution suite has its own options
+        from .behaviour.__main__ import main as behaviour_main
+        return behaviour_main([a for a in argv if a != "--behaviour"])
     ap = argparse.ArgumentParser(prog="python -m model_runtime.evaluate", description=__doc__.split("\n\n")[0],
                                  formatter_class=HelpFormatter)
+    ap.add_argument("--behaviour", action="store_true",
+                    help="run the behaviour suite instead: --split val|test --json --plots DIR "
+                         "(python -m model_runtime.behaviour --help lists its options)")
     ap.add_argument("--library", default="runs/clips.npz",
                     help="clip cache .npz (built from --data and saved here when missing)")
     ap.add_argument("--data", default=None, help="motion folder to build a missing --library from")

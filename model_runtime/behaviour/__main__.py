@@ -1,4 +1,4 @@
-"""python -m model_runtime.behaviour --split val|test [--json] [--plots DIR] [--episodes N] [--families ...]"""
+"""The behaviour suite: python -m model_runtime.behaviour (or python -m model_runtime.evaluate --behaviour)."""
 from __future__ import annotations
 
 import argparse
@@ -22,7 +22,7 @@ def _jsonable(x):
 
 def main(argv: list[str] | None = None) -> int:
     from .scenarios import EPISODES_PER_FAMILY, FAMILIES
-    ap = argparse.ArgumentParser(prog="python -m model_runtime.behaviour", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m model_runtime.evaluate --behaviour", description=__doc__,
                                  formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument("--split", choices=("val", "test"), default="val",
                     help="val for every choice (checkpoint, weights, thresholds); test only to report")

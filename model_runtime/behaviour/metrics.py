@@ -8,7 +8,10 @@ from typing import Sequence
 
 import numpy as np
 
-from ..joints import JOINT_INDEX, LEFT_HIP, RIGHT_HIP, SOLE_BELOW_FOOT_JOINT
+from ..data.pairs import facing_xy as hip_facing  # noqa: F401  (one definition each, shared with evaluation)
+from ..data.pairs import min_clearance as min_joint_clearance  # noqa: F401
+from ..evaluation.metrics import facing_error_deg  # noqa: F401
+from ..joints import JOINT_INDEX, SOLE_BELOW_FOOT_JOINT
 
 FPS = 10.0
 SEAM_PERIOD = 8                 # model frames per segment: frame k * 8 (k >= 1) starts a new segment
@@ -16,31 +19,6 @@ TOES = (JOINT_INDEX["left_foot"], JOINT_INDEX["right_foot"])   # SMPL-X "foot" j
 PLANTED_HEIGHT = 0.02           # m: a toe whose sole is this close to the floor counts as planted
 REACH_RADIUS = 0.5              # m: a goal counts as reached once the pelvis is this close (horizontally)
 SETTLE_S = 2.0                  # s: "does it stop": distance to the goal this long after arrival
-
-
-def hip_facing(joints: np.ndarray) -> np.ndarray:
-    """(..., 22, 3) -> (..., 2) unit horizontal facing: +Z x (right hip - left hip). The rest body faces -Y."""
-    j = np.asarray(joints, np.float64)
-    across = j[..., RIGHT_HIP, :2] - j[..., LEFT_HIP, :2]
-    f = np.stack((-across[..., 1], across[..., 0]), -1)
-    return f / np.maximum(np.linalg.norm(f, axis=-1, keepdims=True), 1e-9)
-
-
-def facing_error_deg(ego: np.ndarray, target_xy: np.ndarray) -> float | np.ndarray:
-    """Angle (0-180 deg) between the ego's hip facing and the horizontal direction from its pelvis to target."""
-    e = np.asarray(ego, np.float64)
-    to = np.asarray(target_xy, np.float64)[..., :2] - e[..., 0, :2]
-    f = hip_facing(e)
-    cross = f[..., 0] * to[..., 1] - f[..., 1] * to[..., 0]
-    ang = np.degrees(np.abs(np.arctan2(cross, (f * to).sum(-1))))
-    return float(ang) if np.ndim(ang) == 0 else ang
-
-
-def min_joint_clearance(ego: np.ndarray, partner: np.ndarray) -> float:
-    """Smallest distance (m) between any ego joint and any partner joint at the same frame."""
-    a, b = np.asarray(ego, np.float64), np.asarray(partner, np.float64)
-    d = np.linalg.norm(a[:, :, None, :] - b[:, None, :, :], axis=-1)
-    return float(d.min())
 
 
 def goal_arrival(ego: np.ndarray, goal: Sequence[float], limit_frames: int,
