@@ -19,7 +19,7 @@ from importlib import import_module
 
 from .config import ModelConfig
 from .data.bone_maps import BoneMapGuess, guess_bone_map, normalise_name, validate_bone_map
-from .errors import MAX_COORD, InputError, ModelFileError, RemogenError
+from .errors import MAX_COORD, MAX_GUIDANCE, InputError, ModelFileError, ModelOutputError, RemogenError
 from .joints import JOINT_NAMES, NUM_JOINTS, PARENTS, rest_joints_np, standing_pelvis_height
 from .quat import continuous_quaternions, matrix_to_quat_np, qconj, qmul, qslerp, rigid_rotation
 
@@ -32,7 +32,8 @@ _LAZY = {
 }
 
 __all__ = ["load_model", "save_model", "ReactionSession", "EgoFrame", "OccupancyGrid", "ModelConfig",
-           "RemogenError", "InputError", "ModelFileError", "MAX_COORD", "Motion", "load_motion",
+           "RemogenError", "InputError", "ModelFileError", "ModelOutputError", "MAX_COORD", "MAX_GUIDANCE",
+           "Motion", "load_motion",
            "JOINT_NAMES", "NUM_JOINTS", "PARENTS", "rest_joints_np", "standing_pelvis_height",
            "BoneMapGuess", "guess_bone_map", "normalise_name", "validate_bone_map",
            "qmul", "qconj", "qslerp", "matrix_to_quat_np", "rigid_rotation", "continuous_quaternions"]

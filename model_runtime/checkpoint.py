@@ -18,7 +18,7 @@ import torch
 
 from .config import ModelConfig, resolve_config
 from .errors import ModelFileError
-from .model import ReMoGenModel
+from .model import ReMoGenModel, non_finite_weight
 
 FORMAT = "remogen"
 FORMAT_VERSION = 1
@@ -78,14 +78,6 @@ def _read_payload(path: Path) -> dict:
             raise ModelFileError(f"{path} has no '{key}' (or it is not a dict); the file is damaged or incomplete: "
                                  "re-train or re-download it")
     return payload
-
-
-def non_finite_weight(state_dict: dict) -> str | None:
-    """The name of the first floating-point tensor holding NaN or inf, or None."""
-    for name, t in state_dict.items():
-        if torch.is_tensor(t) and t.is_floating_point() and not bool(torch.isfinite(t).all()):
-            return name
-    return None
 
 
 def untrained_stages(meta: dict) -> list[str] | None:
