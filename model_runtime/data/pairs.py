@@ -52,6 +52,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
+from ..quat import unit_vectors as _unit
 from ..skeleton import LEFT_HIP, RIGHT_HIP, forward_kinematics, quat_to_matrix
 from .library import ClipLibrary, derived_kind, is_derived
 
@@ -85,10 +86,6 @@ def facing_xy(joints: np.ndarray) -> np.ndarray:
     across = joints[..., RIGHT_HIP, :2] - joints[..., LEFT_HIP, :2]
     f = np.stack((-across[..., 1], across[..., 0]), -1)
     return f / np.maximum(np.linalg.norm(f, axis=-1, keepdims=True), 1e-9)
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / max(float(np.linalg.norm(v)), 1e-9)
 
 
 def _angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -29,6 +29,7 @@ import numpy as np
 import torch
 
 from ..errors import InputError
+from ..quat import unit_vectors as _unit
 from ..skeleton import (FOOT_JOINTS, JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS, SOLE_BELOW_FOOT_JOINT,
                         forward_kinematics, global_to_local, rest_joints, rest_offsets)
 from .bone_maps import NameIndex, parse_spec
@@ -40,10 +41,6 @@ J = JOINT_INDEX
 _REST = rest_joints(torch.float64).numpy()
 _OFF = rest_offsets(torch.float64).numpy()
 _SPINE = [J["pelvis"], J["spine1"], J["spine2"], J["spine3"], J["neck"]]
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
 # ------------------------------------------------------------------------------ bone map -> targets
