@@ -72,7 +72,8 @@ def _read_payload(path: Path) -> dict:
                              f"{FORMAT_VERSION}; update model_runtime")
     if version not in SUPPORTED_VERSIONS or isinstance(version, bool):
         raise ModelFileError(f"{path} has model format version {version!r}, this runtime reads "
-                             f"{', '.join(map(str, SUPPORTED_VERSIONS))}; the file is damaged: re-train or re-download it")
+                             f"{', '.join(map(str, SUPPORTED_VERSIONS))}; the file is damaged: re-train or "
+                             "re-download it")
     for key in ("config", "state_dict"):
         if not isinstance(payload.get(key), dict):
             raise ModelFileError(f"{path} has no '{key}' (or it is not a dict); the file is damaged or incomplete: "

@@ -4,16 +4,17 @@ Scheduling (why no frame ever pays for a whole diffusion): while segment i plays
 diffusion of segment i+1 runs a step or two per frame, conditioned on segment i's *predicted* last
 frames (its canonical frame and history) and the partner/scene seen when it started. At the boundary
 the finished latent is decoded with the *real* history. A job's inputs (history, contexts, text,
-alpha, guidance) are fixed when it starts; changing them takes effect from the next segment's
-diffusion (within 0.8 s of model time), while FWSR reacts to the partner every frame.
-Every frame is checked before it is emitted: a non-finite pose raises ModelOutputError and leaves the
-session as it was before that step.
+alpha, guidance) are fixed when it starts, one segment ahead of the frames shown: a change is read by
+the next job to start and shows in the segment it produces, 0.8 to 1.5 s of model time later (F = 8),
+while FWSR reacts to the partner every frame and switching FWSR on or off acts on the next frame.
 (A background thread for the diffusion was measured and rejected: with two Python threads issuing
-small torch ops, GIL contention made the job finish later than spreading it, p99 38 ms vs 9 ms.) With FWSR on, every frame f >= 1 of a segment
-re-decodes a latent refined from the latest history and partner frames (Algorithm 1), so reactions
-show up within a frame rather than at the next segment. `slide=True` is the paper's ablation: a full
-diffusion every frame. Everything draws noise from one seeded generator in a fixed order, so the same
-seed and inputs give the same frames.
+small torch ops, GIL contention made the job finish later than spreading it, p99 38 ms vs 9 ms.)
+With FWSR on, every frame f >= 1 of a segment re-decodes a latent refined from the latest history and
+partner frames (Algorithm 1), so reactions show up within a frame rather than at the next segment.
+`slide=True` is the paper's ablation: a full diffusion every frame. Everything draws noise from one
+seeded generator in a fixed order, so the same seed and inputs give the same frames. Every frame is
+checked before it is emitted: a non-finite pose raises ModelOutputError and leaves the session as it
+was before that step.
 """
 from __future__ import annotations
 
