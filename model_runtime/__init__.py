@@ -15,11 +15,19 @@ motion readers import PyTorch when first used. This package never imports bpy.
 """
 from __future__ import annotations
 
+import os
 from importlib import import_module
+
+# Intel MKL's strict reproducibility mode: its matrix products (all of PyTorch's float32 linear layers on x86
+# CPUs) give the same bits at any thread count, so a seed gives the same motion with 1 or 8 threads. Without
+# it, MKL picks kernels by the per-thread share of a product, and the paper-size model drifted 3e-5 m in
+# 200 frames between 1 and 2 threads. MKL reads this once, at its first product, so it is set on import,
+# before this package runs any PyTorch op. A value already set (by the user) is kept.
+os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 
 from .config import ModelConfig
 from .data.bone_maps import BoneMapGuess, guess_bone_map, normalise_name, validate_bone_map
-from .errors import MAX_COORD, InputError, ModelFileError, RemogenError
+from .errors import MAX_COORD, MAX_GUIDANCE, InputError, ModelFileError, ModelOutputError, RemogenError
 from .joints import JOINT_NAMES, NUM_JOINTS, PARENTS, rest_joints_np, standing_pelvis_height
 from .quat import continuous_quaternions, matrix_to_quat_np, qconj, qmul, qslerp, rigid_rotation
 
@@ -32,7 +40,8 @@ _LAZY = {
 }
 
 __all__ = ["load_model", "save_model", "ReactionSession", "EgoFrame", "OccupancyGrid", "ModelConfig",
-           "RemogenError", "InputError", "ModelFileError", "MAX_COORD", "Motion", "load_motion",
+           "RemogenError", "InputError", "ModelFileError", "ModelOutputError", "MAX_COORD", "MAX_GUIDANCE",
+           "Motion", "load_motion",
            "JOINT_NAMES", "NUM_JOINTS", "PARENTS", "rest_joints_np", "standing_pelvis_height",
            "BoneMapGuess", "guess_bone_map", "normalise_name", "validate_bone_map",
            "qmul", "qconj", "qslerp", "matrix_to_quat_np", "rigid_rotation", "continuous_quaternions"]

@@ -3,10 +3,14 @@
 A model file is a plain dict of primitives and tensors written with `torch.save` and read with
 `torch.load(..., weights_only=True)`, so no code from a file is ever executed:
     {"format": "remogen", "format_version": 1, "config": {...}, "state_dict": {...}, "meta": {...}}
+
+meta["stages"] (written by model_runtime.train) maps each trained stage to its steps and losses;
+meta["trained"] is False for random weights. Loading a file whose record shows untrained stages warns.
 """
 from __future__ import annotations
 
 import os
+import warnings
 import zipfile
 from pathlib import Path
 
@@ -14,16 +18,24 @@ import torch
 
 from .config import ModelConfig, resolve_config
 from .errors import ModelFileError
-from .model import ReMoGenModel
+from .model import ReMoGenModel, non_finite_weight
 
 FORMAT = "remogen"
 FORMAT_VERSION = 1
+SUPPORTED_VERSIONS = (1,)
 DEFAULT_WEIGHTS = Path(__file__).resolve().parent / "weights" / "default.pt"
 
 
 def save_model(model: ReMoGenModel, path: str | os.PathLike, meta: dict | None = None) -> Path:
-    """Write atomically (temp file + rename) so an interrupted save never leaves a truncated model."""
+    """Write atomically (temp file + rename) so an interrupted save never leaves a truncated model.
+
+    A model with a NaN or infinite weight is refused (ModelFileError): such a file could only produce NaN poses.
+    """
     path = Path(path)
+    bad = non_finite_weight(model.state_dict())
+    if bad:
+        raise ModelFileError(f"not saving {path}: the model's weight {bad} holds NaN or inf values (training "
+                             "diverged); resume from an earlier state or lower the learning rate")
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "config": model.cfg.to_dict(),
@@ -55,10 +67,39 @@ def _read_payload(path: Path) -> dict:
         raise ModelFileError(f"{path} is not a ReMoGen model file (no 'remogen' format marker); "
                              "use a file written by model_runtime")
     version = payload.get("format_version")
-    if not isinstance(version, int) or version > FORMAT_VERSION:
+    if isinstance(version, int) and not isinstance(version, bool) and version > FORMAT_VERSION:
         raise ModelFileError(f"{path} has model format version {version}, this runtime reads up to "
                              f"{FORMAT_VERSION}; update model_runtime")
+    if version not in SUPPORTED_VERSIONS or isinstance(version, bool):
+        raise ModelFileError(f"{path} has model format version {version!r}, this runtime reads "
+                             f"{', '.join(map(str, SUPPORTED_VERSIONS))}; the file is damaged: re-train or "
+                             "re-download it")
+    for key in ("config", "state_dict"):
+        if not isinstance(payload.get(key), dict):
+            raise ModelFileError(f"{path} has no '{key}' (or it is not a dict); the file is damaged or incomplete: "
+                                 "re-train or re-download it")
     return payload
+
+
+def untrained_stages(meta: dict) -> list[str] | None:
+    """The training stages a model file's meta shows as not trained; None when the file does not say."""
+    from .training.stages import STAGES
+    stages = meta.get("stages")
+    if isinstance(stages, dict):
+        return [s for s in STAGES if _stage_steps(stages.get(s)) <= 0]
+    if meta.get("trained") is False:
+        return list(STAGES)
+    return None
+
+
+def _stage_steps(record) -> int:
+    """Steps a stage record shows; a record without a readable count counts as trained."""
+    if not isinstance(record, dict):
+        return 0
+    try:
+        return int(record.get("steps", 1))
+    except (TypeError, ValueError):
+        return 1
 
 
 def load_model(path: str | os.PathLike | None = None, *, config: "str | ModelConfig | None" = None,
@@ -87,8 +128,25 @@ def load_model(path: str | os.PathLike | None = None, *, config: "str | ModelCon
         first = str(exc).strip().splitlines()[0]
         raise ModelFileError(f"{p} does not match its own config ({first[:160]}); the file is damaged "
                              "or from another version") from None
-    model.meta = dict(payload.get("meta") or {})
+    bad = non_finite_weight(payload["state_dict"])
+    if bad:
+        raise ModelFileError(f"{p} holds NaN or inf values in its weight {bad}, so every pose would be NaN; "
+                             "re-train or re-download the model")
+    meta = payload.get("meta")
+    model.meta = dict(meta) if isinstance(meta, dict) else {}
+    _warn_untrained(p, model.meta)
     return model.to(device).eval().set_precision(precision)
+
+
+def _warn_untrained(path: Path, meta: dict) -> None:
+    from .training.stages import STAGES
+    missing = untrained_stages(meta)
+    if not missing:
+        return
+    what = ("holds untrained (random) weights" if len(missing) == len(STAGES) else
+            f"is only partly trained (untrained: {', '.join(missing)})")
+    warnings.warn(f"{path} {what}, so its motion will be poor; train the missing stages (python -m "
+                  "model_runtime.train STAGE --out FOLDER continues from FOLDER/model.pt)", stacklevel=3)
 
 
 def _random_model(cfg: ModelConfig, seed: int) -> ReMoGenModel:

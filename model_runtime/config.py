@@ -1,9 +1,83 @@
-"""Model configuration (a plain dataclass stored in every checkpoint) and its size presets."""
+"""Model configuration (a plain dataclass stored in every checkpoint) and its size presets.
+
+Every field is checked against sane bounds when a config is built, so a typo or a damaged file gives a
+one-line error instead of a model that tries to allocate hundreds of gigabytes.
+"""
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field, fields, replace
 
-from .errors import ModelFileError
+from .errors import InputError, ModelFileError
+
+FEATURE_DIM = 276   # the per-frame motion features (features.py); fixed by the skeleton and the layout
+
+# Integer fields: (smallest, largest) allowed. Generous for research, small enough to stay in memory.
+_INT_BOUNDS = {
+    "history": (1, 32), "future": (1, 64), "latent_tokens": (1, 16), "latent_dim": (1, 2048),
+    "vae_dim": (1, 2048), "vae_layers": (1, 32), "vae_heads": (1, 64), "vae_ff": (1, 8192),
+    "den_dim": (1, 2048), "den_layers": (1, 32), "den_heads": (1, 64), "den_ff": (1, 8192),
+    "diffusion_steps": (1, 1000), "mim_dim": (1, 2048), "mim_heads": (1, 64), "mim_ff_mult": (1, 8),
+    "partner_window": (1, 100), "voxel_resolution": (1, 128), "voxel_patch": (1, 128), "scene_layers": (0, 32),
+    "fwsr_dim": (1, 2048), "fwsr_heads": (1, 64),
+}
+_TEXT_BOUNDS = {"dim": (1, 2048), "buckets": (1, 65536), "seed": (0, 2 ** 63 - 1)}
+# (width, heads) pairs: attention splits the width evenly over the heads
+_HEADS = (("vae_dim", "vae_heads"), ("den_dim", "den_heads"), ("mim_dim", "mim_heads"), ("fwsr_dim", "fwsr_heads"))
+_MAX_SCENE_EXTENT = 10.0   # metres from the ego, per axis
+
+
+def _int_problem(name: str, value, lo: int, hi: int) -> str | None:
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        return f"{name} = {value!r} must be an integer in {lo}..{hi}"
+    return None
+
+
+def _config_problem(c: "ModelConfig") -> str | None:
+    """What is wrong with a config, in a few words, or None."""
+    for name, (lo, hi) in _INT_BOUNDS.items():
+        problem = _int_problem(name, getattr(c, name), lo, hi)
+        if problem:
+            return problem
+    if c.feature_dim != FEATURE_DIM:
+        return f"feature_dim = {c.feature_dim!r} must be {FEATURE_DIM}"
+    if not isinstance(c.preset, str) or len(c.preset) > 64:
+        return f"preset = {c.preset!r} must be a short name"
+    for name in ("dropout", "rel_omega", "fwsr_beta"):
+        v = getattr(c, name)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            return f"{name} = {v!r} must be a finite number"
+    if not 0.0 <= c.dropout < 1.0 or c.fwsr_beta < 0.0 or not 0.0 < c.rel_omega <= 10.0:
+        return (f"dropout {c.dropout!r}, fwsr_beta {c.fwsr_beta!r} or rel_omega {c.rel_omega!r} is out of range "
+                "(dropout in [0, 1), fwsr_beta >= 0, rel_omega in (0, 10])")
+    for width, heads in _HEADS:
+        if getattr(c, width) % getattr(c, heads):
+            return f"{width} = {getattr(c, width)} must be a multiple of {heads} = {getattr(c, heads)}"
+    if c.future < c.history or c.partner_window < c.history:
+        return f"future ({c.future}) and partner_window ({c.partner_window}) must be >= history ({c.history})"
+    if c.voxel_patch > c.voxel_resolution or c.voxel_resolution % c.voxel_patch:
+        return f"voxel_resolution = {c.voxel_resolution} must be a multiple of voxel_patch = {c.voxel_patch}"
+    layers = c.inject_layers
+    if (not isinstance(layers, tuple) or len(set(layers)) != len(layers)
+            or any(_int_problem("", i, 0, c.den_layers - 1) for i in layers)):
+        return f"inject_layers = {layers!r} must be distinct denoiser layers in 0..{c.den_layers - 1}"
+    b = c.scene_bounds
+    if (not isinstance(b, tuple) or len(b) != 3
+            or not all(isinstance(ax, tuple) and len(ax) == 2 and all(_is_number(v) for v in ax) for ax in b)
+            or not all(-_MAX_SCENE_EXTENT <= lo < hi <= _MAX_SCENE_EXTENT for lo, hi in b)):
+        return f"scene_bounds = {b!r} must be three (low, high) pairs in metres within +-{_MAX_SCENE_EXTENT:g}"
+    t = c.text
+    if not isinstance(t, dict) or not isinstance(t.get("name"), str):
+        return f"text = {t!r} must be a dict with a text encoder 'name'"
+    for key, (lo, hi) in _TEXT_BOUNDS.items():
+        problem = _int_problem(f"text[{key!r}]", t.get(key), lo, hi)
+        if problem:
+            return problem
+    return None
+
+
+def _is_number(v) -> bool:
+    return not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
 
 
 @dataclass(frozen=True)
@@ -44,6 +118,13 @@ class ModelConfig:
     fwsr_heads: int = 4
     fwsr_beta: float = 1.0
 
+    def __post_init__(self) -> None:
+        problem = _config_problem(self)
+        if problem:
+            err = InputError(f"model config: {problem}; change that field")
+            err.problem = problem   # read by from_dict to word the model-file error
+            raise err
+
     @property
     def text_dim(self) -> int:
         return int(self.text["dim"])
@@ -53,17 +134,29 @@ class ModelConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "ModelConfig":
+        """The config stored in a model file; ModelFileError when it is not a valid one."""
+        if not isinstance(d, dict):
+            raise ModelFileError(f"the model file's config is a {type(d).__name__}, not a dict; the file is damaged: "
+                                 "re-train or re-download it")
         known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
+        unknown = sorted(set(map(str, d)) - known)
         if unknown:
             raise ModelFileError(f"model file has config fields this runtime does not know ({', '.join(unknown)}); "
                                  "update model_runtime or use a matching model file")
-        d = dict(d)
-        if "inject_layers" in d:
-            d["inject_layers"] = tuple(d["inject_layers"])
-        if "scene_bounds" in d:
-            d["scene_bounds"] = tuple(tuple(b) for b in d["scene_bounds"])
-        return cls(**d)
+        problem = None
+        try:
+            d = dict(d)
+            if "inject_layers" in d:
+                d["inject_layers"] = tuple(d["inject_layers"])
+            if "scene_bounds" in d:
+                d["scene_bounds"] = tuple(tuple(b) for b in d["scene_bounds"])
+            return cls(**d)
+        except InputError as exc:
+            problem = getattr(exc, "problem", str(exc))
+        except TypeError:   # inject_layers or scene_bounds not a list, a field name not a string
+            problem = "a field has the wrong type"
+        raise ModelFileError(f"the model file's config is invalid ({problem}); the file is damaged or from another "
+                             "version: re-train or re-download it")
 
 
 PRESETS: dict[str, ModelConfig] = {
@@ -87,6 +180,5 @@ def resolve_config(config: "str | ModelConfig") -> ModelConfig:
     if isinstance(config, ModelConfig):
         return config
     if config not in PRESETS:
-        from .errors import InputError
         raise InputError(f"unknown model config {config!r}; use one of {', '.join(PRESETS)} or a ModelConfig")
     return replace(PRESETS[config])

@@ -13,5 +13,11 @@ class ModelFileError(RemogenError):
     """A model file is missing, truncated, foreign or does not match this runtime."""
 
 
+class ModelOutputError(RemogenError):
+    """The model produced a non-finite pose; the session is left as it was before that step."""
+
+
 # Coordinates beyond this many metres are a broken transform or unit, never a real scene.
 MAX_COORD = 1e5
+# Classifier-free guidance above this only overshoots (the default is 5); far above it the pose becomes NaN.
+MAX_GUIDANCE = 20.0

@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import torch
 
+from .config import FEATURE_DIM
 from .skeleton import (LEFT_HIP, NUM_JOINTS, RIGHT_HIP, forward_kinematics, matrix_to_rot6d,
                        rot6d_to_matrix)
 
-FEATURE_DIM = 276
 ROOT_T = slice(0, 3)
 ROT6D = slice(3, 135)
 ROOT_T_DELTA = slice(135, 138)

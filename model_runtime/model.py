@@ -16,6 +16,14 @@ from .text import TextEncoder, build_text_encoder
 MODULE_NAMES = ("hhi", "hsi")
 
 
+def non_finite_weight(state_dict: dict) -> str | None:
+    """The name of the first floating-point tensor holding NaN or inf, or None."""
+    for name, t in state_dict.items():
+        if torch.is_tensor(t) and t.is_floating_point() and not bool(torch.isfinite(t).all()):
+            return name
+    return None
+
+
 class Contexts:
     """Encoded interaction context of one segment: per module (tokens, mask or None).
 
@@ -215,9 +223,8 @@ class DiffusionJob:
 
     def __init__(self, model: ReMoGenModel, hist: torch.Tensor, text_emb: torch.Tensor, contexts: Contexts,
                  alpha: dict[str, float], guidance: float, generator: torch.Generator) -> None:
-        self.model, self.hist, self.contexts = model, hist, contexts
+        self.model, self.hist, self.text_emb, self.contexts = model, hist, text_emb, contexts
         self._cache: dict = {}
-        self.text_emb = text_emb
         self.alpha, self.guidance, self.gen = dict(alpha), float(guidance), generator
         cfg = model.cfg
         shape = (hist.shape[0], cfg.latent_tokens, cfg.latent_dim)
@@ -226,18 +233,16 @@ class DiffusionJob:
         self.result: torch.Tensor | None = None
 
     @property
-    def text_emb(self) -> torch.Tensor:
-        return self._text_emb
-
-    @text_emb.setter
-    def text_emb(self, value: torch.Tensor) -> None:
-        self._text_emb = value
-        self._cache.pop(("cond", 1), None)
-        self._cache.pop(("cond", 2), None)
-
-    @property
     def done(self) -> bool:
         return self.result is not None
+
+    def snapshot(self) -> tuple:
+        """The progress `advance` changes (not the shared generator: its owner saves that)."""
+        return self.z, self.t, self.result, dict(self._cache)
+
+    def restore(self, snap: tuple) -> None:
+        self.z, self.t, self.result, cache = snap
+        self._cache = dict(cache)
 
     def advance(self, steps: int) -> None:
         for _ in range(steps):

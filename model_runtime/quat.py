@@ -1,4 +1,4 @@
-"""NumPy quaternion maths (w, x, y, z), no torch.
+"""NumPy quaternion maths (w, x, y, z) and unit vectors, no torch.
 
 The per-frame output path and the Blender extension handle one pose at a time, where a NumPy op costs
 about 1 us and a torch op 5-10 us of dispatch. The batched torch versions live in ``skeleton.py``;
@@ -7,6 +7,11 @@ tests check that both agree and check both against SciPy.
 from __future__ import annotations
 
 import numpy as np
+
+
+def unit_vectors(v: np.ndarray) -> np.ndarray:
+    """Vectors along the last axis scaled to length 1 (a zero vector stays zero)."""
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
 def qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -4,14 +4,17 @@ Scheduling (why no frame ever pays for a whole diffusion): while segment i plays
 diffusion of segment i+1 runs a step or two per frame, conditioned on segment i's *predicted* last
 frames (its canonical frame and history) and the partner/scene seen when it started. At the boundary
 the finished latent is decoded with the *real* history. A job's inputs (history, contexts, text,
-alpha, guidance) are fixed when it starts; changing them takes effect from the next segment's
-diffusion (within 0.8 s of model time), while FWSR reacts to the partner every frame.
+alpha, guidance) are fixed when it starts, one segment ahead of the frames shown: a change is read by
+the next job to start and shows in the segment it produces, 0.8 to 1.5 s of model time later (F = 8),
+while FWSR reacts to the partner every frame and switching FWSR on or off acts on the next frame.
 (A background thread for the diffusion was measured and rejected: with two Python threads issuing
-small torch ops, GIL contention made the job finish later than spreading it, p99 38 ms vs 9 ms.) With FWSR on, every frame f >= 1 of a segment
-re-decodes a latent refined from the latest history and partner frames (Algorithm 1), so reactions
-show up within a frame rather than at the next segment. `slide=True` is the paper's ablation: a full
-diffusion every frame. Everything draws noise from one seeded generator in a fixed order, so the same
-seed and inputs give the same frames.
+small torch ops, GIL contention made the job finish later than spreading it, p99 38 ms vs 9 ms.)
+With FWSR on, every frame f >= 1 of a segment re-decodes a latent refined from the latest history and
+partner frames (Algorithm 1), so reactions show up within a frame rather than at the next segment.
+`slide=True` is the paper's ablation: a full diffusion every frame. Everything draws noise from one
+seeded generator in a fixed order, so the same seed and inputs give the same frames. Every frame is
+checked before it is emitted: a non-finite pose raises ModelOutputError and leaves the session as it
+was before that step.
 """
 from __future__ import annotations
 
@@ -23,10 +26,10 @@ from typing import Any, Sequence
 import numpy as np
 import torch
 
-from .errors import MAX_COORD, InputError
+from .errors import MAX_COORD, MAX_GUIDANCE, InputError, ModelOutputError
 from .features import (ROOT_T, ROT6D, canonical_frame, feature_joints, features_from_pose, to_canonical,
                        to_world, world_points_to_canonical)
-from .model import MODULE_NAMES, Contexts, DiffusionJob, ReMoGenModel
+from .model import MODULE_NAMES, Contexts, DiffusionJob, ReMoGenModel, non_finite_weight
 from .quat import matrix_to_quat_np
 from .skeleton import (JOINT_NAMES, NUM_JOINTS, forward_kinematics_np, quat_to_matrix, rot6d_to_matrix_np,
                        standing_pelvis_height, yaw_matrix)
@@ -92,9 +95,21 @@ def _check_point(name: str, v: Any) -> np.ndarray | None:
         p = np.asarray(v, dtype=np.float32).reshape(-1)
     except (TypeError, ValueError):
         raise InputError(f"{name} must be an (x, y, z) point in metres or None") from None
-    if p.shape != (3,) or not (np.isfinite(p) & (np.abs(p) < MAX_COORD)).all():
-        raise InputError(f"{name} must be a finite (x, y, z) point within {MAX_COORD:.0e} m, or None; got {v!r}")
+    if p.shape != (3,):
+        shape = np.shape(v)
+        raise InputError(f"{name} must be one (x, y, z) point in metres or None, got {p.size} values (shape {shape}); "
+                         "pass a single point")
+    if not (np.isfinite(p) & (np.abs(p) < MAX_COORD)).all():
+        raise InputError(f"{name} must be a finite (x, y, z) point within {MAX_COORD:.0e} m, or None; "
+                         f"got ({', '.join(f'{x:g}' for x in p)})")
     return p
+
+
+def _check_seed(seed: Any) -> int:
+    # bool is an int in Python but never a meant seed; floats would be truncated silently
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2 ** 64:
+        raise InputError(f"seed must be an integer in 0..2**64-1, got {seed!r}; pass e.g. seed=0")
+    return int(seed)
 
 
 def _check_alpha(alpha: Any) -> dict[str, float]:
@@ -102,13 +117,27 @@ def _check_alpha(alpha: Any) -> dict[str, float]:
         return {k: 1.0 for k in MODULE_NAMES}
     if not isinstance(alpha, dict):
         raise InputError("alpha must be a dict like {'hhi': 1.0, 'hsi': 0.5}")
-    unknown = sorted(set(alpha) - set(MODULE_NAMES))
+    unknown = sorted(map(repr, set(alpha) - set(MODULE_NAMES)))
     if unknown:
-        raise InputError(f"unknown alpha key(s) {unknown}; use {list(MODULE_NAMES)}")
-    out = {k: float(alpha.get(k, 0.0)) for k in MODULE_NAMES}
-    if not all(math.isfinite(v) and v >= 0 for v in out.values()):
-        raise InputError(f"alpha weights must be finite and >= 0, got {alpha}")
+        raise InputError(f"unknown alpha key(s) {', '.join(unknown)}; use {list(MODULE_NAMES)}")
+    out = {}
+    for k in MODULE_NAMES:
+        v = alpha.get(k, 0.0)
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not (
+                math.isfinite(v) and v >= 0):
+            raise InputError(f"alpha[{k!r}] must be a finite number >= 0, got {v!r}; e.g. {{'{k}': 1.0}}")
+        out[k] = float(v)
     return out
+
+
+def _output_problem(feat_world: torch.Tensor, frame: EgoFrame) -> str | None:
+    """What is wrong with a generated frame (non-finite or absurdly far joints), or None."""
+    if not (bool(torch.isfinite(feat_world).all()) and np.isfinite(frame.joints).all()
+            and np.isfinite(frame.local_rotations).all()):
+        return "non-finite joints"
+    if not (np.abs(frame.joints) < MAX_COORD).all():
+        return f"joints beyond {MAX_COORD:.0e} m"
+    return None
 
 
 class ReactionSession:
@@ -118,7 +147,7 @@ class ReactionSession:
                  guidance: float = 5.0, fwsr: bool = True, scene: Any = None, slide: bool = False) -> None:
         self.model = model.eval()
         self.cfg = model.cfg
-        self.seed = int(seed)
+        self.seed = seed
         self.slide = bool(slide)
         self._job: DiffusionJob | None = None
         self.text = text
@@ -135,6 +164,15 @@ class ReactionSession:
         self.reset()
 
     # ------------------------------------------------------------------ live settings
+    @property
+    def seed(self) -> int:
+        """The noise seed; used from the next reset()."""
+        return self._seed
+
+    @seed.setter
+    def seed(self, value: int) -> None:
+        self._seed = _check_seed(value)
+
     @property
     def text(self) -> str:
         return self._text
@@ -160,10 +198,10 @@ class ReactionSession:
 
     @guidance.setter
     def guidance(self, value: float) -> None:
-        g = float(value)
-        if not math.isfinite(g) or g < 0:
-            raise InputError(f"guidance must be a finite number >= 0, got {value!r}")
-        self._guidance = g
+        ok = not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
+        if not ok or not 0.0 <= float(value) <= MAX_GUIDANCE:
+            raise InputError(f"guidance must be a number in 0..{MAX_GUIDANCE:g} (default 5), got {value!r}")
+        self._guidance = float(value)
 
     @property
     def fwsr(self) -> bool:
@@ -207,7 +245,7 @@ class ReactionSession:
         self._hist_world = features_from_pose(rot.expand(h + 1, -1, -1, -1), pelvis.expand(h + 1, -1))
         self._partner: deque = deque([None] * self.cfg.partner_window, maxlen=self.cfg.partner_window)
         self._goal: np.ndarray | None = None
-        self._gen = torch.Generator().manual_seed(self.seed)
+        self._gen = torch.Generator().manual_seed(self._seed)
         self._seg: dict | None = None
         self._job = None
         self._index = 0
@@ -215,19 +253,53 @@ class ReactionSession:
     # ------------------------------------------------------------------ stepping
     @torch.inference_mode()
     def step(self, partner: Any = None, goal: Any = None) -> EgoFrame:
-        """Advance one model frame (0.1 s). partner: (22, 3) world joints or None; goal: (x, y, z) or None."""
+        """Advance one model frame (0.1 s). partner: (22, 3) world joints or None; goal: (x, y, z) or None.
+
+        Raises InputError for bad inputs and ModelOutputError for a non-finite pose; either way the
+        session is left exactly as before the call.
+        """
         p = _check_partner(partner)
         g = _check_point("goal", goal)
-        self._partner.append(p)
-        self._goal = g
-        if self.slide:
-            feat_world = self._slide_frame()
-        else:
-            feat_world = self._segment_frame()
+        before = self._snapshot()
+        try:
+            self._partner.append(p)
+            self._goal = g
+            feat_world = self._slide_frame() if self.slide else self._segment_frame()
+            with np.errstate(over="ignore", invalid="ignore"):   # a broken frame is reported just below
+                out = _frame_from_world_features(self._index, feat_world)
+            problem = _output_problem(feat_world, out)
+            if problem:
+                raise ModelOutputError(self._output_error(problem))
+        except BaseException:   # also KeyboardInterrupt: a half-done step must not stay behind
+            self._restore(before)
+            raise
         self._hist_world = torch.cat((self._hist_world[1:], feat_world.unsqueeze(0)), 0)
-        out = _frame_from_world_features(self._index, feat_world)
         self._index += 1
         return out
+
+    def _output_error(self, problem: str) -> str:
+        where = f"the model produced {problem} at frame {self._index}"
+        bad = non_finite_weight(self.model.state_dict())
+        if bad is not None:
+            return f"{where}: its weight {bad} holds NaN or inf; load an intact model file"
+        return (f"{where} with guidance {self._guidance:g} and alpha {self._alpha}; lower the guidance or alpha, "
+                "or reset the session")
+
+    def _snapshot(self) -> tuple:
+        """What a step changes, to undo a failed one (tensors are replaced, never changed in place)."""
+        seg = None if self._seg is None else dict(self._seg)
+        job = None if self._job is None else (self._job, self._job.snapshot())
+        return (list(self._partner), self._goal, self._gen.get_state(), seg, job)
+
+    def _restore(self, snap: tuple) -> None:
+        partner, self._goal, gen_state, self._seg, job = snap
+        self._partner.clear()
+        self._partner.extend(partner)
+        self._gen.set_state(gen_state)
+        self._job = None
+        if job is not None:
+            self._job = job[0]
+            self._job.restore(job[1])
 
     def _segment_frame(self) -> torch.Tensor:
         seg = self._seg
@@ -290,9 +362,9 @@ class ReactionSession:
             occupancy = torch.as_tensor(np.asarray(occ, np.float32)).unsqueeze(0)
         if self._goal is not None:
             goal = world_points_to_canonical(torch.as_tensor(self._goal).view(1, 1, 3), rot, trans)[:, 0]
-        # Encode every cue that is present, even at alpha 0, so a slider moved mid-segment takes effect
-        # on the next denoising step; blocks of modules at alpha 0 are still skipped.
-        return self.model.encode_contexts(partner, present, occupancy, goal, {k: 1.0 for k in MODULE_NAMES})
+        # Only the modules this job uses: a job keeps the alpha it starts with, so a slider moved
+        # mid-segment takes effect from the next segment's diffusion (module docstring).
+        return self.model.encode_contexts(partner, present, occupancy, goal, self._alpha)
 
     def _partner_window(self, rot: torch.Tensor, trans: torch.Tensor, n: int,
                         hidden: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
@@ -315,7 +387,3 @@ class ReactionSession:
     def history_world_features(self) -> torch.Tensor:
         """(H, 276) the latest emitted frames as world-frame features (for tools and tests)."""
         return self._hist_world.clone()
-
-    @property
-    def root_height(self) -> float:
-        return float(self._hist_world[-1, ROOT_T][2])

@@ -15,6 +15,7 @@ import torch
 
 from .joints import (FOOT_JOINTS, JOINT_INDEX, JOINT_NAMES, LEFT_HIP, NUM_JOINTS, PARENTS,  # noqa: F401
                      REST_JOINTS_ZUP, RIGHT_HIP, SOLE_BELOW_FOOT_JOINT, standing_pelvis_height)
+from .quat import unit_vectors
 
 
 def rest_joints(dtype: torch.dtype = torch.float32) -> torch.Tensor:
@@ -173,9 +174,8 @@ _LEVELS_NP = [(idx.numpy(), par.numpy()) for idx, par in _LEVELS]
 
 def rot6d_to_matrix_np(d6: np.ndarray) -> np.ndarray:
     a1, a2 = d6[..., :3], d6[..., 3:]
-    b1 = a1 / np.maximum(np.linalg.norm(a1, axis=-1, keepdims=True), 1e-12)
-    a2 = a2 - (b1 * a2).sum(-1, keepdims=True) * b1
-    b2 = a2 / np.maximum(np.linalg.norm(a2, axis=-1, keepdims=True), 1e-12)
+    b1 = unit_vectors(a1)
+    b2 = unit_vectors(a2 - (b1 * a2).sum(-1, keepdims=True) * b1)
     return np.stack((b1, b2, np.cross(b1, b2)), axis=-1)
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 import zlib
+from collections import OrderedDict
 from typing import Protocol
 
 import torch
@@ -25,6 +26,9 @@ class TextEncoder(Protocol):
 _WORD = re.compile(r"[a-z0-9]+")
 # Words that carry no motion meaning and appear in most captions ("a person ...").
 _STOP = frozenset("a an the to of is in on at his her their its and then person human someone s".split())
+# Prompts kept encoded (least recently used dropped first): a live rig re-encodes its few prompts every
+# change, while a script feeding many distinct prompts must not grow memory without bound.
+CACHE_SIZE = 512
 
 
 class HashedNgramEncoder:
@@ -36,7 +40,7 @@ class HashedNgramEncoder:
         self.dim, self.buckets, self.seed = dim, buckets, seed
         gen = torch.Generator().manual_seed(seed)
         self._table = torch.randn(buckets, dim, generator=gen) / dim ** 0.5
-        self._cache: dict[str, torch.Tensor] = {}
+        self._cache: OrderedDict[str, torch.Tensor] = OrderedDict()
 
     def config(self) -> dict:
         return {"name": self.name, "dim": self.dim, "buckets": self.buckets, "seed": self.seed}
@@ -48,15 +52,19 @@ class HashedNgramEncoder:
         return self._table[idx].mean(0)
 
     def encode_one(self, text: str) -> torch.Tensor:
-        if text not in self._cache:
-            words = [w for w in _WORD.findall(text.lower()) if w not in _STOP]
-            if not words:
-                vec = torch.zeros(self.dim)
-            else:
-                vec = torch.nn.functional.normalize(
-                    torch.stack([self._word_vector(w) for w in words]).mean(0), dim=0)
-            self._cache[text] = vec
-        return self._cache[text]
+        vec = self._cache.get(text)
+        if vec is not None:
+            self._cache.move_to_end(text)
+            return vec
+        words = [w for w in _WORD.findall(text.lower()) if w not in _STOP]
+        if not words:
+            vec = torch.zeros(self.dim)
+        else:
+            vec = torch.nn.functional.normalize(torch.stack([self._word_vector(w) for w in words]).mean(0), dim=0)
+        self._cache[text] = vec
+        if len(self._cache) > CACHE_SIZE:
+            self._cache.popitem(last=False)
+        return vec
 
     def encode(self, texts: list[str]) -> torch.Tensor:
         return torch.stack([self.encode_one(t) for t in texts])

@@ -77,6 +77,11 @@ class OccupancyGrid:
         occ = np.asarray(occupancy)
         if occ.ndim != 3:
             raise InputError(f"occupancy must be a 3-D (nx, ny, nz) boolean array, got shape {occ.shape}")
+        if occ.dtype.kind not in "biuf":   # strings, objects, dates: no reading of them means "occupied"
+            raise InputError(f"occupancy must hold booleans (or 0/1 numbers), got dtype {occ.dtype}; "
+                             "pass e.g. a NumPy bool array")
+        if occ.dtype.kind == "f" and not np.isfinite(occ).all():
+            raise InputError("occupancy holds NaN or inf; pass booleans (or 0/1 numbers)")
         # Stored with a one-cell free border: sample_ego clips indices onto it instead of masking.
         self._init_storage(origin, np.pad(occ.astype(bool, copy=False), 1), int(num_triangles))
 

@@ -1,7 +1,10 @@
+import copy
+import warnings
+
 import pytest
 import torch
 
-from model_runtime import ModelFileError, load_model, save_model
+from model_runtime import InputError, ModelConfig, ModelFileError, load_model, save_model
 from model_runtime.checkpoint import DEFAULT_WEIGHTS
 from model_runtime.model import Contexts
 
@@ -17,7 +20,8 @@ def x0(model):
 
 def test_save_load_round_trip(tmp_path, tiny_model):
     path = save_model(tiny_model, tmp_path / "m.pt", meta={"note": "test"})
-    loaded = load_model(path)
+    with pytest.warns(UserWarning, match="untrained"):     # random weights
+        loaded = load_model(path)
     assert loaded.cfg == tiny_model.cfg
     assert loaded.meta["note"] == "test"
     assert torch.equal(x0(loaded), x0(tiny_model))
@@ -128,3 +132,107 @@ def test_reduced_precisions_step_and_stay_close(precision):
 def test_unknown_precision_names_the_choices():
     with pytest.raises(Exception, match="'fp32', 'bf16' or 'int8'"):
         load_model(config="tiny", precision="fp16")
+
+
+def saved_payload(tmp_path, model, **meta):
+    return torch.load(save_model(model, tmp_path / "m.pt", meta=meta or None), weights_only=True)
+
+
+def load_payload(tmp_path, payload):
+    torch.save(payload, tmp_path / "edited.pt")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")                     # random weights: only the error matters here
+        return load_model(tmp_path / "edited.pt")
+
+
+@pytest.mark.parametrize("key", ["config", "state_dict"])
+def test_a_file_without_config_or_weights_is_one_line(tmp_path, tiny_model, key):
+    payload = saved_payload(tmp_path, tiny_model)
+    del payload[key]
+    with pytest.raises(ModelFileError) as err:
+        load_payload(tmp_path, payload)
+    assert f"no '{key}'" in one_line(err)
+
+
+@pytest.mark.parametrize("version", [0, -1, True, "1", None])
+def test_only_supported_format_versions_load(tmp_path, tiny_model, version):
+    payload = saved_payload(tmp_path, tiny_model)
+    payload["format_version"] = version
+    with pytest.raises(ModelFileError) as err:
+        load_payload(tmp_path, payload)
+    assert "format version" in one_line(err)
+
+
+@pytest.mark.parametrize("field, value, words", [
+    ("future", 1000, "future = 1000 must be an integer in 1..64"),
+    ("history", 0, "history = 0"),
+    ("den_heads", 3, "multiple of den_heads"),
+    ("inject_layers", [7], "inject_layers"),
+    ("text", {"name": "hashed_ngram", "dim": 32, "buckets": -1, "seed": 1}, "text['buckets']"),
+    ("dropout", "x", "dropout"),
+    ("feature_dim", 10, "feature_dim"),
+])
+def test_out_of_range_config_in_a_file_is_one_line(tmp_path, tiny_model, field, value, words):
+    payload = saved_payload(tmp_path, tiny_model)
+    payload["config"][field] = value
+    with pytest.raises(ModelFileError) as err:
+        load_payload(tmp_path, payload)
+    assert words in one_line(err) and "re-train or re-download" in str(err.value)
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    ({"future": 10 ** 9}, "future = 1000000000 must be an integer in 1..64"),   # would allocate 512 GB
+    ({"latent_dim": 2.5}, "latent_dim"),
+    ({"scene_bounds": ((1.0, -1.0), (0.0, 1.0), (0.0, 1.0))}, "scene_bounds"),
+    ({"partner_window": 1}, "partner_window"),
+    ({"voxel_patch": 5}, "voxel_patch"),
+])
+def test_config_fields_are_checked_on_construction(kwargs, words):
+    with pytest.raises(InputError) as err:
+        ModelConfig(**kwargs)
+    assert words in one_line(err)
+
+
+def test_the_presets_are_valid_configs():
+    for preset in ("tiny", "default", "paper"):
+        assert load_model(config=preset).cfg.preset == preset
+
+
+def test_nan_weights_are_refused_on_load_and_on_save(tmp_path, tiny_model):
+    payload = saved_payload(tmp_path, tiny_model)
+    payload["state_dict"]["vae.out.bias"][0] = float("nan")
+    with pytest.raises(ModelFileError) as err:
+        load_payload(tmp_path, payload)
+    assert "NaN or inf" in one_line(err) and "vae.out.bias" in str(err.value)
+    broken = copy.deepcopy(tiny_model)
+    with torch.no_grad():
+        broken.denoiser.out.weight[0, 0] = float("inf")
+    with pytest.raises(ModelFileError) as err:
+        save_model(broken, tmp_path / "broken.pt")
+    assert "denoiser.out.weight" in one_line(err)
+    assert not (tmp_path / "broken.pt").exists()
+
+
+def stage_record(steps):
+    return {"steps": steps, "wall_s": 1.0, "val_loss": 0.1}
+
+
+def test_a_partly_trained_file_warns_naming_the_untrained_stages(tmp_path, tiny_model):
+    path = save_model(tiny_model, tmp_path / "vae_only.pt",
+                      meta={"trained": True, "stages": {"vae": stage_record(100), "prior": stage_record(0)}})
+    with pytest.warns(UserWarning, match=r"only partly trained \(untrained: prior, hhi, hsi, fwsr\)") as rec:
+        load_model(path)
+    assert len(rec) == 1 and "\n" not in str(rec[0].message)
+
+
+def test_a_fully_trained_or_unrecorded_file_loads_silently(tmp_path, tiny_model):
+    full = {s: stage_record(10) for s in ("vae", "prior", "hhi", "hsi", "fwsr")}
+    done = save_model(tiny_model, tmp_path / "full.pt", meta={"trained": True, "stages": full})
+    old = tmp_path / "old.pt"
+    payload = torch.load(done, weights_only=True)
+    payload["meta"] = {"note": "a file from before stages were recorded"}
+    torch.save(payload, old)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_model(done)
+        load_model(old)

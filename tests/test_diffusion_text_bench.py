@@ -38,6 +38,18 @@ def test_text_encoder_is_deterministic_and_semantic_enough():
     assert torch.equal(v[3], torch.zeros(a.dim))
 
 
+def test_text_cache_stays_bounded_and_keeps_recent_prompts():
+    from model_runtime.text import CACHE_SIZE
+    enc = HashedNgramEncoder(dim=8, buckets=64)
+    first = enc.encode_one("prompt 0").clone()
+    for i in range(1, 3 * CACHE_SIZE):
+        enc.encode_one(f"prompt {i}")
+        enc.encode_one("walk")                       # used all along: never dropped
+    assert len(enc._cache) == CACHE_SIZE
+    assert "walk" in enc._cache and "prompt 0" not in enc._cache
+    assert torch.equal(enc.encode_one("prompt 0"), first)   # a dropped prompt encodes the same again
+
+
 def test_bench_prints_all_rows(capsys):
     from model_runtime import bench
     assert bench.main(["--json", "--configs", "tiny", "--frames", "3", "--slide-frames", "2", "--warmup", "2"]) == 0

@@ -99,26 +99,25 @@ def test_slide_mode_runs(tiny_model):
 
 
 def test_settings_change_between_steps(tiny_model):
-    """Text, alpha, guidance and FWSR set mid-run are taken: the frames before the change are those of an
-    unchanged run, the frames after it differ."""
-    def run(change: bool):
+    """Text, alpha and guidance are read when a segment's diffusion starts (one segment ahead of the frame
+    shown), so a change at frame 5 shows from frame 16 (F = 8); FWSR switches at the next frame."""
+    def run(changes):
         s = ReactionSession(tiny_model, text="walk", seed=0)
         s.reset()
+        partner = approaching_partner(24)
         out = []
-        for i in range(20):
-            if change and i == 5:
-                s.text, s.alpha, s.guidance, s.fwsr = "wave", {"hhi": 0.5, "hsi": 0.0}, 2.0, False
-            if change and i == 12:
-                s.fwsr = True
-            out.append(s.step().joints)
-        return s, np.stack(out)
-
-    s, changed = run(True)
-    _, same = run(False)
-    assert (s.text, s.alpha, s.guidance, s.fwsr) == ("wave", {"hhi": 0.5, "hsi": 0.0}, 2.0, True)
-    assert np.array_equal(changed[:5], same[:5])
-    assert np.abs(changed[6:] - same[6:]).max() > 1e-4
-    assert np.isfinite(changed).all()
+        for i in range(24):
+            for name, value in changes.get(i, {}).items():
+                setattr(s, name, value)
+            out.append(s.step(partner=partner[i]).joints)
+        return np.stack(out)
+    same = run({})
+    diffusion = run({5: {"text": "wave", "alpha": {"hhi": 0.5, "hsi": 0.0}, "guidance": 2.0}})
+    fwsr = run({5: {"fwsr": False}})
+    assert np.array_equal(diffusion[:16], same[:16])
+    assert not np.allclose(diffusion[16:], same[16:])
+    assert np.array_equal(fwsr[:5], same[:5])
+    assert not np.allclose(fwsr[5], same[5])
 
 
 def test_reset_from_frame(tiny_model):
@@ -151,13 +150,35 @@ def test_bad_partner_raises_one_line_and_changes_nothing(tiny_model, partner, wo
 @pytest.mark.parametrize("kwargs, words", [
     ({"alpha": {"hhi": 1.0, "xyz": 1.0}}, "unknown alpha"),
     ({"alpha": {"hhi": float("nan")}}, "finite"),
-    ({"guidance": -1.0}, "guidance"),
+    ({"alpha": {"hhi": "abc"}}, "alpha['hhi'] must be a finite number >= 0, got 'abc'"),
+    ({"alpha": {"hsi": None}}, "alpha['hsi'] must be a finite number >= 0, got None"),
+    ({"alpha": "abc"}, "alpha must be a dict"),
+    ({"guidance": -1.0}, "guidance must be a number in 0..20"),
+    ({"guidance": 1e30}, "guidance must be a number in 0..20"),
+    ({"guidance": "abc"}, "guidance"),
+    ({"guidance": None}, "guidance"),
+    ({"seed": 2 ** 64}, "seed must be an integer in 0..2**64-1"),
+    ({"seed": -1}, "seed must be"),
+    ({"seed": None}, "seed must be"),
+    ({"seed": 1.5}, "seed must be"),
+    ({"seed": "3"}, "seed must be"),
     ({"text": 3}, "text must be a string"),
     ({"scene": "table"}, "OccupancyGrid"),
 ])
-def test_bad_settings_raise(tiny_model, kwargs, words):
-    with pytest.raises(InputError, match=words):
+def test_bad_settings_raise_one_line(tiny_model, kwargs, words):
+    with pytest.raises(InputError) as err:
         ReactionSession(tiny_model, **kwargs)
+    assert words in str(err.value) and "\n" not in str(err.value)
+
+
+def test_bad_settings_on_a_running_session_change_nothing(tiny_model):
+    s = ReactionSession(tiny_model, seed=3, guidance=2.0)
+    for name, value in (("guidance", 1e30), ("seed", 2 ** 64), ("alpha", {"hhi": "abc"})):
+        with pytest.raises(InputError):
+            setattr(s, name, value)
+    assert (s.guidance, s.seed, s.alpha) == (2.0, 3, {"hhi": 1.0, "hsi": 1.0})
+    s.seed = np.uint64(2 ** 63)                      # NumPy integers are seeds too
+    assert s.seed == 2 ** 63
 
 
 def test_bad_goal_and_reset_raise(tiny_model):
@@ -166,3 +187,49 @@ def test_bad_goal_and_reset_raise(tiny_model):
         s.step(goal=(0.0, float("inf"), 0.0))
     with pytest.raises(InputError, match="root_position"):
         s.reset(root_position=(0.0, 0.0))
+
+
+def test_a_goal_of_many_points_gets_a_one_line_message(tiny_model):
+    s = ReactionSession(tiny_model)
+    with pytest.raises(InputError) as err:
+        s.step(goal=np.arange(12.0).reshape(4, 3))
+    assert "got 12 values (shape (4, 3))" in str(err.value) and "\n" not in str(err.value)
+
+
+def break_model_at(session, frame, breaker):
+    """Step `session` to `frame`, then let `breaker(model)` spoil the model; returns the undo."""
+    model = session.model
+    saved = {k: v.clone() for k, v in model.state_dict().items()}
+    for _ in range(frame):
+        session.step()
+    with torch.no_grad():
+        breaker(model)
+    return lambda: model.load_state_dict(saved)
+
+
+@pytest.mark.parametrize("breaker, words", [
+    (lambda m: m.vae.out.weight.fill_(float("nan")), "non-finite joints at frame 9: its weight vae.out.weight "
+                                                      "holds NaN or inf"),
+    (lambda m: m.vae.out.bias.fill_(3e38), "non-finite joints at frame 9 with guidance 5"),  # finite weights
+    (lambda m: m.vae.out.bias.fill_(1e30), "joints beyond 1e+05 m at frame 9 with guidance 5"),
+])
+def test_a_non_finite_pose_raises_and_leaves_the_session_as_it_was(breaker, words):
+    """The first non-finite frame raises ModelOutputError in one line naming the cause and the frame; the
+    session changes nothing, so with the model repaired it goes on exactly as if nothing had happened."""
+    from model_runtime import ModelOutputError, load_model
+    model = load_model(config="tiny", seed=0)
+    ref = ReactionSession(model, text="walk", seed=4)
+    ref.reset()
+    expected = [ref.step().joints for _ in range(12)]
+    s = ReactionSession(model, text="walk", seed=4)
+    s.reset()
+    repair = break_model_at(s, 9, breaker)           # mid-segment, with a diffusion job in flight
+    before = s.history_world_features()
+    for _ in range(2):                               # failing again changes nothing either
+        with pytest.raises(ModelOutputError) as err:
+            s.step()
+        msg = str(err.value)
+        assert words in msg and "\n" not in msg
+    assert s.frame_index == 9 and torch.equal(before, s.history_world_features())
+    repair()
+    assert all(np.array_equal(s.step().joints, e) for e in expected[9:])

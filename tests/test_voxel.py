@@ -325,3 +325,22 @@ def test_bad_query_arguments_raise():
         g.sample_ego(np.eye(4), resolution=0)
     with pytest.raises(InputError, match=r"\(\.\.\., 3\)"):
         g.occupied(np.zeros((4, 2)))
+
+
+@pytest.mark.parametrize("occupancy, words", [
+    (np.full((2, 2, 2), "a"), "dtype <U1"),
+    (np.full((2, 2, 2), "True"), "dtype <U4"),
+    (np.full((2, 2, 2), None), "dtype object"),
+    (np.full((2, 2, 2), np.nan), "NaN"),
+])
+def test_a_grid_of_strings_objects_or_nan_is_refused_in_one_line(occupancy, words):
+    with pytest.raises(InputError) as info:
+        OccupancyGrid((0.0, 0.0, 0.0), 0.1, occupancy)
+    msg = str(info.value)
+    assert words in msg and "booleans" in msg and "\n" not in msg
+
+
+def test_a_grid_of_0_1_numbers_is_the_boolean_grid():
+    occ = np.zeros((3, 3, 3), np.float32)
+    occ[1, 1, 1] = 1.0
+    assert np.array_equal(OccupancyGrid((0, 0, 0), 0.1, occ).occupancy, occ.astype(bool))

@@ -4,12 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..quat import unit_vectors as normalized  # noqa: F401  (the one unit-vector helper)
+
 _PLANE = ((1, 2), (2, 0), (0, 1))   # the two axes each of x, y, z rotates
-
-
-def normalized(v: np.ndarray) -> np.ndarray:
-    """v scaled to length 1 along its last axis (a zero vector stays zero)."""
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
 def axis_rotation(axis: int, ang: np.ndarray) -> np.ndarray:
