@@ -11,6 +11,7 @@ import importlib
 import importlib.util
 import os
 import sys
+import warnings
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -103,7 +104,7 @@ def error_line(exc: BaseException) -> str:
 
 # ---------------------------------------------------------------------------- model cache
 
-_model_cache: dict[str, Any] = {"key": None, "model": None}
+_model_cache: dict[str, Any] = {"key": None, "model": None, "note": ""}
 
 
 def settings_from_prefs() -> tuple[str, int]:
@@ -132,14 +133,25 @@ def get_model(path: str | None = None, threads: int | None = None) -> Any:
         stamp = None
     key = f"{resolved}|{stamp}"
     if _model_cache["key"] != key:
-        _model_cache["model"] = rt.load_model(resolved or None)
+        with warnings.catch_warnings(record=True) as caught:   # e.g. a partly trained model file
+            warnings.simplefilter("always")
+            _model_cache["model"] = rt.load_model(resolved or None)
         _model_cache["key"] = key
+        _model_cache["note"] = " ".join(str(w.message) for w in caught)
+        if _model_cache["note"]:
+            print(f"ReMoGen: {_model_cache['note']}")
     return _model_cache["model"]
+
+
+def model_note() -> str:
+    """A warning from loading the current model (empty when it loaded cleanly), for the panel."""
+    return _model_cache["note"]
 
 
 def clear_model_cache() -> None:
     _model_cache["key"] = None
     _model_cache["model"] = None
+    _model_cache["note"] = ""
 
 
 def _resolve_model_path(path: str) -> str:

@@ -45,15 +45,6 @@ class Pose:
     local_rotations: np.ndarray   # (22, 4)
 
 
-def interpolate(f0: Any, f1: Any, a: float) -> Pose:
-    """Pose between two EgoFrames (a in [0, 1])."""
-    if f1 is None or a <= _EPS:
-        return Pose(np.asarray(f0.root[:3, 3], np.float64), np.asarray(f0.local_rotations, np.float64))
-    p = (1.0 - a) * np.asarray(f0.root[:3, 3], np.float64) + a * np.asarray(f1.root[:3, 3], np.float64)
-    q = _RT.qslerp(np.asarray(f0.local_rotations, np.float64), np.asarray(f1.local_rotations, np.float64), a)
-    return Pose(p, q)
-
-
 class FrameDriver:
     """A running ReMoGen session bound to one scene's partner, scene collection, goal and ego."""
 
@@ -187,26 +178,26 @@ class FrameDriver:
         return self.frames[min(max(k - self.first_index, 0), len(self.frames) - 1)]
 
     def pose_at(self, model_time: float) -> Pose:
-        """The pose at a model time already generated (clamped to the frames kept)."""
-        x = model_time / self.dt
-        k0 = int(math.floor(x + _EPS))
-        a = x - k0
-        if k0 >= self.latest_index or a <= _EPS:
-            return interpolate(self._frame(k0), None, 0.0)
-        return interpolate(self._frame(k0), self._frame(k0 + 1), a)
+        """The pose at one model time already generated (live and frame-change; see poses_at)."""
+        p = self.poses_at(np.array([model_time]))
+        return Pose(p.pelvis[0], p.local_rotations[0])
 
     def poses_at(self, model_times: np.ndarray) -> Pose:
-        """Poses at many model times at once (bake): pelvis (T, 3), local_rotations (T, 22, 4)."""
+        """Poses at model times already generated, clamped to the frames kept: pelvis (T, 3), local_rotations
+        (T, 22, 4). Between two model frames the pelvis is blended linearly and the rotations by slerp; live,
+        frame-change and bake all go through here, so a bake's keys are what live shows."""
         x = np.asarray(model_times, dtype=np.float64) / self.dt
         k0 = np.floor(x + _EPS).astype(np.int64)
         a = np.clip(x - k0, 0.0, 1.0)
         lo = np.clip(k0 - self.first_index, 0, len(self.frames) - 1)
         hi = np.clip(k0 + 1 - self.first_index, 0, len(self.frames) - 1)
-        a = np.where(hi == lo, 0.0, a)
-        pel = np.stack([f.root[:3, 3] for f in self.frames]).astype(np.float64)
-        rot = np.stack([f.local_rotations for f in self.frames]).astype(np.float64)
-        p = (1.0 - a)[:, None] * pel[lo] + a[:, None] * pel[hi]
-        q = _RT.qslerp(rot[lo], rot[hi], a[:, None, None])
+        a = np.where((hi == lo) | (a <= _EPS), 0.0, a)
+        need, where = np.unique(np.concatenate((lo, hi)), return_inverse=True)   # stack only these frames
+        pel = np.stack([self.frames[i].root[:3, 3] for i in need]).astype(np.float64)
+        rot = np.stack([self.frames[i].local_rotations for i in need]).astype(np.float64)
+        i0, i1 = where[:len(lo)], where[len(lo):]
+        p = (1.0 - a)[:, None] * pel[i0] + a[:, None] * pel[i1]
+        q = _RT.qslerp(rot[i0], rot[i1], a[:, None, None])
         return Pose(p, q)
 
     def last_needed(self, model_time: float) -> int:

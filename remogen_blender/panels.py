@@ -83,6 +83,8 @@ class REMOGEN_PT_main(bpy.types.Panel):
             row.operator_context = 'INVOKE_DEFAULT'
             row.operator("remogen.live_start", icon='PLAY')
         row.operator("remogen.bake", icon='REC')
+        if _runtime.model_note():
+            layout.label(text=_runtime.model_note(), icon='ERROR')
         line = live.status_line()
         if line:
             layout.label(text=line, icon='ERROR' if line.startswith("Live stopped:") else 'INFO')

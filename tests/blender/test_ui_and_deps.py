@@ -131,3 +131,18 @@ def test_installer_async_reports_status(tmp_path):
     th.join(120)
     assert deps.status.done and deps.status.ok and not deps.status.running
     assert "installed" in deps.status.line
+
+
+def test_panel_shows_a_partly_trained_model_warning(fresh, tiny_model_file):
+    import scenes
+    from remogen_blender import _runtime
+    from remogen_blender.panels import REMOGEN_PT_main
+    scenes.demo_scene(fresh)
+    _runtime.clear_model_cache()
+    try:
+        _runtime.get_model(str(tiny_model_file), 1)
+        labels = [kw.get("text", "") for name, a, kw in _draw(REMOGEN_PT_main, fresh) if name == "label"]
+        assert any("untrained" in t for t in labels), labels
+    finally:
+        _runtime.clear_model_cache()
+    assert _runtime.model_note() == ""
