@@ -106,14 +106,22 @@ def local_from_global(glob: np.ndarray, joints_idx: tuple[int, ...], local_rot: 
 class FootLock:
     """Per-session contact state; `apply` cleans one frame and returns the per-foot contacts."""
 
-    def __init__(self, config: FootLockConfig | None = None) -> None:
+    def __init__(self, config: FootLockConfig | None = None, locks: bool = True) -> None:
         self.cfg = config or FootLockConfig()
+        self.locks = locks          # False: only report contacts, leave the pose as generated
         self.reset()
 
     def reset(self) -> None:
         self._prev_toe = {side: None for side in LEGS}
         self._anchor: dict[str, np.ndarray | None] = {side: None for side in LEGS}
         self._fade: dict[str, tuple[int, np.ndarray] | None] = {side: None for side in LEGS}
+
+    def state(self) -> tuple:
+        """A copy of the contact state (to undo a failed frame)."""
+        return dict(self._prev_toe), dict(self._anchor), dict(self._fade)
+
+    def set_state(self, state: tuple) -> None:
+        self._prev_toe, self._anchor, self._fade = (dict(d) for d in state)
 
     def _contact(self, side: str, toe: np.ndarray, floor: float) -> bool:
         prev = self._prev_toe[side]

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
@@ -29,6 +29,7 @@ import torch
 from .errors import MAX_COORD, MAX_GUIDANCE, InputError, ModelOutputError
 from .features import (ROOT_T, ROT6D, canonical_frame, feature_joints, features_from_pose, to_canonical,
                        to_world, world_points_to_canonical)
+from .footlock import FootLock
 from .model import MODULE_NAMES, Contexts, DiffusionJob, ReMoGenModel, non_finite_weight
 from .quat import matrix_to_quat_np
 from .skeleton import (JOINT_NAMES, NUM_JOINTS, forward_kinematics_np, quat_to_matrix, rot6d_to_matrix_np,
@@ -42,20 +43,29 @@ class EgoFrame:
     joints: np.ndarray           # (22, 3) float32
     root: np.ndarray             # (4, 4) float32 pelvis transform (global orientation + position)
     local_rotations: np.ndarray  # (22, 4) float32 quaternions w-first; [0] = global orientation
+    contacts: np.ndarray = field(default_factory=lambda: np.zeros(2, bool))  # (left, right) foot planted
 
     @property
     def position(self) -> np.ndarray:
         return self.root[:3, 3]
 
 
-def _frame_from_world_features(index: int, feat_world: torch.Tensor) -> EgoFrame:
+def _frame_from_world_features(index: int, feat_world: torch.Tensor, feet: FootLock) -> EgoFrame:
+    """The EgoFrame of one generated frame; `feet` marks planted feet and, when it locks, pins them."""
     f = feat_world.numpy()
     rot = rot6d_to_matrix_np(f[ROT6D].reshape(NUM_JOINTS, 6))
     pelvis = f[ROOT_T]
+    joints = forward_kinematics_np(rot, pelvis)
+    if np.isfinite(joints).all():
+        cleaned, contacts = feet.apply(rot.astype(np.float64), joints.astype(np.float64))
+        if feet.locks:
+            rot = cleaned
+            joints = forward_kinematics_np(rot, pelvis.astype(np.float64))
+    else:
+        contacts = np.zeros(2, bool)    # reported as a model output problem by the caller
     root = np.eye(4, dtype=np.float32)
     root[:3, :3], root[:3, 3] = rot[0], pelvis
-    return EgoFrame(index, forward_kinematics_np(rot, pelvis).astype(np.float32), root,
-                    matrix_to_quat_np(rot).astype(np.float32))
+    return EgoFrame(index, joints.astype(np.float32), root, matrix_to_quat_np(rot).astype(np.float32), contacts)
 
 
 def _as_transform(rot: torch.Tensor, trans: torch.Tensor) -> np.ndarray:
@@ -144,9 +154,12 @@ class ReactionSession:
     """Online reaction generation. See module docstring for the scheduling."""
 
     def __init__(self, model: ReMoGenModel, text: str = "", seed: int = 0, alpha: dict | None = None,
-                 guidance: float = 5.0, fwsr: bool = True, scene: Any = None, slide: bool = False) -> None:
+                 guidance: float = 5.0, fwsr: bool = True, scene: Any = None, slide: bool = False,
+                 cleanup: bool = True) -> None:
         self.model = model.eval()
         self.cfg = model.cfg
+        self._feet = FootLock()
+        self.cleanup = cleanup
         self.seed = seed
         self.slide = bool(slide)
         self._job: DiffusionJob | None = None
@@ -204,6 +217,15 @@ class ReactionSession:
         self._guidance = float(value)
 
     @property
+    def cleanup(self) -> bool:
+        """Planted-foot cleanup of the output (leg IK); contacts are reported either way. Next frame on."""
+        return self._feet.locks
+
+    @cleanup.setter
+    def cleanup(self, value: bool) -> None:
+        self._feet.locks = bool(value)
+
+    @property
     def fwsr(self) -> bool:
         return self._fwsr
 
@@ -249,6 +271,7 @@ class ReactionSession:
         self._seg: dict | None = None
         self._job = None
         self._index = 0
+        self._feet.reset()
 
     # ------------------------------------------------------------------ stepping
     @torch.inference_mode()
@@ -266,7 +289,7 @@ class ReactionSession:
             self._goal = g
             feat_world = self._slide_frame() if self.slide else self._segment_frame()
             with np.errstate(over="ignore", invalid="ignore"):   # a broken frame is reported just below
-                out = _frame_from_world_features(self._index, feat_world)
+                out = _frame_from_world_features(self._index, feat_world, self._feet)
             problem = _output_problem(feat_world, out)
             if problem:
                 raise ModelOutputError(self._output_error(problem))
@@ -289,10 +312,11 @@ class ReactionSession:
         """What a step changes, to undo a failed one (tensors are replaced, never changed in place)."""
         seg = None if self._seg is None else dict(self._seg)
         job = None if self._job is None else (self._job, self._job.snapshot())
-        return (list(self._partner), self._goal, self._gen.get_state(), seg, job)
+        return (list(self._partner), self._goal, self._gen.get_state(), seg, job, self._feet.state())
 
     def _restore(self, snap: tuple) -> None:
-        partner, self._goal, gen_state, self._seg, job = snap
+        partner, self._goal, gen_state, self._seg, job, feet = snap
+        self._feet.set_state(feet)
         self._partner.clear()
         self._partner.extend(partner)
         self._gen.set_state(gen_state)
