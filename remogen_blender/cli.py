@@ -49,6 +49,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--seed", type=int, help=f"random seed 0..{SEED_MAX}")
     b.add_argument("--fwsr", dest="fwsr", action="store_true", default=None, help="frame-wise refinement on")
     b.add_argument("--no-fwsr", dest="fwsr", action="store_false", help="frame-wise refinement off")
+    b.add_argument("--plant-feet", dest="plant_feet", action="store_true", default=None,
+                   help="keep planted feet fixed (leg IK; the default)")
+    b.add_argument("--no-plant-feet", dest="plant_feet", action="store_false", help="leave the feet as generated")
     b.add_argument("--frames", type=int, nargs=2, metavar=("START", "END"), help="frame range (default: scene's)")
     b.add_argument("--model", help="model file (default: the preferences', else the shipped weights)")
     b.add_argument("--threads", type=int, default=1,
@@ -225,3 +228,5 @@ def _apply(args: argparse.Namespace, scene, st) -> None:
         st.seed = args.seed
     if args.fwsr is not None:
         st.use_fwsr = args.fwsr
+    if args.plant_feet is not None:
+        st.use_foot_lock = args.plant_feet

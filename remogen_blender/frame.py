@@ -67,10 +67,12 @@ class FrameDriver:
         self.dt = 1.0 / float(getattr(self.model, "fps", 1.0 / MODEL_DT))   # seconds per model frame
         rt = runtime()
         self.session = rt.ReactionSession(self.model, text=st.text, seed=st.seed, alpha=_alpha(st),
-                                          guidance=_guidance(st), fwsr=st.use_fwsr, scene=None)
+                                          guidance=_guidance(st), fwsr=st.use_fwsr, scene=None,
+                                          cleanup=st.use_foot_lock)
         root, yaw = self.writer.start_pose()
         self.session.reset(root_position=root, yaw=yaw)
-        self._applied = (st.text, st.seed, st.alpha_hhi, st.alpha_hsi, st.guidance, st.use_fwsr)
+        self._applied = (st.text, st.seed, st.alpha_hhi, st.alpha_hsi, st.guidance, st.use_fwsr,
+                         st.use_foot_lock)
         self.scene_cache = SceneCache()
         self.frames: deque = deque(maxlen=keep_frames)   # EgoFrames, newest last
         self.first_index = 0                              # model index of frames[0]
@@ -93,7 +95,8 @@ class FrameDriver:
 
         The session applies them from its next segment's diffusion (within 0.8 s of model time); FWSR
         still reacts to the partner every frame."""
-        now = (st.text, st.seed, st.alpha_hhi, st.alpha_hsi, st.guidance, st.use_fwsr)
+        now = (st.text, st.seed, st.alpha_hhi, st.alpha_hsi, st.guidance, st.use_fwsr,
+                         st.use_foot_lock)
         if now == self._applied:
             return
         s = self.session
@@ -102,6 +105,7 @@ class FrameDriver:
         s.alpha = _alpha(st)
         s.guidance = _guidance(st)
         s.fwsr = st.use_fwsr
+        s.cleanup = st.use_foot_lock
         # a new seed only matters for a new run (live restarts, bake resets); the session keeps its own
         self._applied = now
 

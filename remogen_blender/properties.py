@@ -56,6 +56,9 @@ class RemogenSettings(bpy.types.PropertyGroup):
         description="Same seed and inputs give the same motion")
     use_fwsr: BoolProperty(
         name="FWSR", default=True, description="Frame-wise segment refinement: react within a frame")
+    use_foot_lock: BoolProperty(
+        name="Plant Feet", default=True,
+        description="Keep a foot that touches the floor fixed there (leg IK on the generated pose)")
 
     # Bone map storage (shown and editable in the panel).
     bone_map: CollectionProperty(type=RemogenBoneMapItem)

@@ -68,6 +68,23 @@ def test_slider_acts_while_running(fresh):
     assert s.alpha["hsi"] == pytest.approx(0.25) and s.text == "sit down"
 
 
+def test_plant_feet_setting_reaches_the_session(fresh):
+    """The Plant Feet toggle switches the runtime's foot cleanup, at start and while running."""
+    from remogen_blender import live
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    import scenes
+    scenes.demo_scene(bpy.context)
+    bpy.context.scene.remogen.use_foot_lock = False
+    assert bpy.ops.remogen.live_start() == {'FINISHED'}
+    bpy.context.scene.frame_set(3)
+    s = live.state().driver.session
+    assert s.cleanup is False
+    bpy.context.scene.remogen.use_foot_lock = True
+    bpy.context.scene.frame_set(5)
+    assert s.cleanup is True
+    live.stop()
+
+
 def test_partner_deleted_mid_run_stops_cleanly(fresh):
     from remogen_blender import live
     d, _ = _run(fresh, range(1, 6))
