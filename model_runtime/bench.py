@@ -4,8 +4,9 @@
 
 One JSON object per line: {"config", "mode", "p50_ms", "p99_ms", "mean_ms", "max_ms", "frames", "threads"}.
 Modes: "segment" (segment rollout, diffusion spread over the running segment's frames), "fwsr"
-(the same plus Frame-wise Segment Refinement every frame), "slide" (a full diffusion every frame,
-the paper's ablation). Batch 1, after warm-up, with a partner walking in, a box scene and a goal,
+(the same plus Frame-wise Segment Refinement every frame), "fwsr-raw" (fwsr without the planted-foot
+cleanup, which every other mode has on, as the runtime does by default), "slide" (a full diffusion
+every frame, the paper's ablation). Batch 1, after warm-up, with a partner walking in, a box scene and a goal,
 so both Meta-Interaction Modules run. Weights are random unless --model is given: speed does not
 depend on their values.
 """
@@ -30,7 +31,8 @@ BEST_THREADS = {"tiny": 1, "default": 1, "paper": 2}  # measured on a 2-core CPU
 def run_case(model, mode: str, frames: int, warmup: int, scene) -> dict:
     session = ReactionSession(model, text="walk to the person and wave", seed=0,
                               alpha={"hhi": 1.0, "hsi": 1.0}, guidance=5.0,
-                              fwsr=(mode == "fwsr"), scene=scene, slide=(mode == "slide"))
+                              fwsr=mode.startswith("fwsr"), scene=scene, slide=(mode == "slide"),
+                              cleanup=(mode != "fwsr-raw"))
     session.reset(root_position=(0.0, 0.0, 0.0), yaw=0.0)
     partner = approaching_partner(warmup + frames)
     goal = BOX_GOAL
@@ -51,7 +53,8 @@ def main(argv: list[str] | None = None) -> int:
                                  formatter_class=HelpFormatter)
     ap.add_argument("--json", action="store_true", help="print JSON lines only")
     ap.add_argument("--configs", default="default,paper", help="comma-separated model presets: tiny, default, paper")
-    ap.add_argument("--modes", default="segment,fwsr,slide", help="comma-separated modes: segment, fwsr, slide")
+    ap.add_argument("--modes", default="segment,fwsr,fwsr-raw,slide",
+                    help="comma-separated modes: segment, fwsr, fwsr-raw (no foot cleanup), slide")
     ap.add_argument("--frames", type=int, default=300, help="timed frames per case (segment and fwsr modes)")
     ap.add_argument("--slide-frames", type=int, default=300, help="timed frames for the (slow) slide mode")
     ap.add_argument("--warmup", type=int, default=24, help="untimed frames before timing")
