@@ -3,13 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..evaluation.plots import _pyplot, save_figure
 
-
-def _pyplot():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
 
 
 def plot_family_paths(family: str, runs: dict, out_png: str | Path) -> Path:
@@ -34,12 +29,7 @@ def plot_family_paths(family: str, runs: dict, out_png: str | Path) -> Path:
         ax.set_title(f"{family}, alpha {alpha:g}: ego (solid), partner (dashed), goal (star)", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)
-    fig.tight_layout()
-    out_png = Path(out_png)
-    out_png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_png, dpi=100)
-    plt.close(fig)
-    return out_png
+    return save_figure(plt, fig, out_png, dpi=100)
 
 
 def plot_report(report: dict, out_dir: str | Path, strips: int = 2) -> list[Path]:

@@ -59,10 +59,15 @@ def plot_training_curves(log_dir: str | Path, out_png: str | Path) -> Path | Non
         ax.set_xlabel("step")
         ax.legend(fontsize=7)
     axes[0][0].set_ylabel("loss")
+    return save_figure(plt, fig, out_png)
+
+
+def save_figure(plt, fig, out_png: str | Path, dpi: int = 110) -> Path:
+    """Lay out, write (making the folder) and close a figure."""
     fig.tight_layout()
     out_png = Path(out_png)
     out_png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_png, dpi=110)
+    fig.savefig(out_png, dpi=dpi)
     plt.close(fig)
     return out_png
 
@@ -104,9 +109,4 @@ def plot_reaction_strip(ego: np.ndarray, partner: np.ndarray | None, out_png: st
     axes[1][0].set_ylabel("z", fontsize=7)
     if title:
         fig.suptitle(title, fontsize=9)
-    fig.tight_layout()
-    out_png = Path(out_png)
-    out_png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_png, dpi=110)
-    plt.close(fig)
-    return out_png
+    return save_figure(plt, fig, out_png)

@@ -44,6 +44,12 @@ def check_library(lib: ClipLibrary, cfg: ModelConfig) -> None:
                            "add longer clips")
 
 
+def _add_derived(lib, train_ids: list[int], val_ids: list[int], derived: list[int]) -> tuple[list[int], list[int]]:
+    """Derived clips join the split of the clip they were made from."""
+    return (train_ids + [i for i in derived if not lib.is_held_out(i)],
+            val_ids + [i for i in derived if lib.is_held_out(i)])
+
+
 def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int, rank: int,
                    note: Callable[[str], None] = lambda msg: None
                    ) -> tuple[SegmentSampler, SegmentSampler | None]:
@@ -58,8 +64,7 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
              "then HHI pairs) ...")
         # turned copies of standing clips: the data has no turn on the spot (data/turns.py)
         lib, turned = add_pivot_turns(lib, train_ids + val_ids, seed=seed)
-        train_ids = train_ids + [i for i in turned if not lib.is_held_out(i)]
-        val_ids = val_ids + [i for i in turned if lib.is_held_out(i)]
+        train_ids, val_ids = _add_derived(lib, train_ids, val_ids, turned)
         pairs_tr = build_hhi_pairs(lib, train_ids, seed=seed)
         pairs_va = build_hhi_pairs(lib, val_ids, seed=seed + 1)
         note(f"{len(pairs_tr)} training and {len(pairs_va)} held-out HHI pairs")
@@ -73,8 +78,7 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
              "obstacles and goals) ...")
         # detour-and-stop copies of straight walks: the data has no stop at a target, no walk around anything
         lib, arrivals = add_arrivals(lib, train_ids + val_ids, seed=seed)
-        train_ids = train_ids + [i for i in arrivals if not lib.is_held_out(i)]
-        val_ids = val_ids + [i for i in arrivals if lib.is_held_out(i)]
+        train_ids, val_ids = _add_derived(lib, train_ids, val_ids, arrivals)
         scenes_tr = build_hsi_scenes(lib, train_ids, seed=seed)
         scenes_va = build_hsi_scenes(lib, val_ids, seed=seed + 1)
         note(f"{len(scenes_tr)} training and {len(scenes_va)} held-out HSI scenes")
