@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 from importlib import import_module
+from pathlib import Path
 
 # Intel MKL's strict reproducibility mode: its matrix products (all of PyTorch's float32 linear layers on x86
 # CPUs) give the same bits at any thread count, so a seed gives the same motion with 1 or 8 threads. Without
@@ -42,10 +43,14 @@ _LAZY = {
 __all__ = ["load_model", "save_model", "ReactionSession", "EgoFrame", "OccupancyGrid", "ModelConfig",
            "RemogenError", "InputError", "ModelFileError", "ModelOutputError", "MAX_COORD", "MAX_GUIDANCE",
            "Motion", "load_motion",
-           "JOINT_NAMES", "NUM_JOINTS", "PARENTS", "rest_joints_np", "standing_pelvis_height",
+           "WALK_CLIP", "JOINT_NAMES", "NUM_JOINTS", "PARENTS", "rest_joints_np", "standing_pelvis_height",
            "BoneMapGuess", "guess_bone_map", "normalise_name", "validate_bone_map",
            "qmul", "qconj", "qslerp", "matrix_to_quat_np", "rigid_rotation", "continuous_quaternions"]
 __version__ = "0.1.0"
+
+# A real walk (CMU trial 05_01, retargeted to the SMPL-X body, 10 fps pose channels): the partner of the demo
+# scene and of the behaviour suite's scenarios.
+WALK_CLIP = Path(__file__).resolve().parent / "data" / "clips" / "cmu_05_01_walk.npz"
 
 
 def __getattr__(name: str):

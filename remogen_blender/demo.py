@@ -3,8 +3,8 @@
     python -m remogen_blender.demo --out demo_out            # in a Python with the bpy module
     python -m remogen_blender.demo --out demo_out --model my.pt
 
-The partner clip (demo_data/cmu_05_01_walk.npz) is CMU trial 05_01 retargeted to the SMPL-X body at 10 fps;
-`python -m remogen_blender.demo make-clip BVH` rebuilds it. CMU data: "The data used in this project was
+The partner clip (the runtime's WALK_CLIP, model_runtime/data/clips/cmu_05_01_walk.npz) is CMU trial 05_01
+retargeted to the SMPL-X body at 10 fps; `python -m remogen_blender.demo make-clip BVH` rebuilds it. CMU data: "The data used in this project was
 obtained from mocap.cs.cmu.edu. The database was created with funding from NSF EIA-0196217."
 """
 from __future__ import annotations
@@ -18,7 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-CLIP = Path(__file__).resolve().parent / "demo_data" / "cmu_05_01_walk.npz"
+from ._runtime import api
+
+CLIP = api().WALK_CLIP
 CREDIT = ("CMU Graphics Lab Motion Capture Database, trial 05_01 (walk). The data used in this project was "
           "obtained from mocap.cs.cmu.edu. The database was created with funding from NSF EIA-0196217.")
 

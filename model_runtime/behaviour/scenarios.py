@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 
@@ -32,7 +31,7 @@ TEXT_PROMPTS = (
     "a person crouches", "a person stretches", "a person claps", "a person looks around",
     "a person walks in a circle", "a person steps to the side", "a person bows",
 )
-WALK_CLIP = Path(__file__).resolve().parent.parent / "data" / "clips" / "cmu_05_01_walk.npz"
+from .. import WALK_CLIP
 
 
 @dataclass(frozen=True)

@@ -29,10 +29,11 @@ def test_demo_scene_and_strip(tmp_path, tiny_model_file):
 
 def test_demo_clip_is_small_cmu_data():
     import numpy as np
-    clip = np.load(ROOT / "remogen_blender" / "demo_data" / "cmu_05_01_walk.npz")
+    from model_runtime import WALK_CLIP
+    clip = np.load(WALK_CLIP)
     assert clip["local_rotations"].shape[1:] == (22, 4) and len(clip["pelvis"]) == len(clip["local_rotations"])
     assert "mocap.cs.cmu.edu" in str(clip["credit"])
-    assert (ROOT / "remogen_blender" / "demo_data" / "cmu_05_01_walk.npz").stat().st_size < 100_000
+    assert WALK_CLIP.stat().st_size < 100_000
 
 
 def _screen(scene, points):
