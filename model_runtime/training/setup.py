@@ -44,10 +44,13 @@ def check_library(lib: ClipLibrary, cfg: ModelConfig) -> None:
                            "add longer clips")
 
 
-def _add_derived(lib, train_ids: list[int], val_ids: list[int], derived: list[int]) -> tuple[list[int], list[int]]:
-    """Derived clips join the split of the clip they were made from."""
-    return (train_ids + [i for i in derived if not lib.is_held_out(i)],
-            val_ids + [i for i in derived if lib.is_held_out(i)])
+def _derive_then_build(lib, train_ids: list[int], val_ids: list[int], derive: Callable, build: Callable, seed: int):
+    """Add derived clips (each joins its source clip's split), then build the stage's pairs or scenes for
+    both splits. Returns (library, train ids, held-out ids, built for training, built for held-out)."""
+    lib, derived = derive(lib, train_ids + val_ids, seed=seed)
+    train_ids = train_ids + [i for i in derived if not lib.is_held_out(i)]
+    val_ids = val_ids + [i for i in derived if lib.is_held_out(i)]
+    return lib, train_ids, val_ids, build(lib, train_ids, seed=seed), build(lib, val_ids, seed=seed + 1)
 
 
 def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int, rank: int,
@@ -63,10 +66,8 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         note(f"building partners for {len(train_ids) + len(val_ids)} clips (turned copies of standing clips, "
              "then HHI pairs) ...")
         # turned copies of standing clips: the data has no turn on the spot (data/turns.py)
-        lib, turned = add_pivot_turns(lib, train_ids + val_ids, seed=seed)
-        train_ids, val_ids = _add_derived(lib, train_ids, val_ids, turned)
-        pairs_tr = build_hhi_pairs(lib, train_ids, seed=seed)
-        pairs_va = build_hhi_pairs(lib, val_ids, seed=seed + 1)
+        lib, train_ids, val_ids, pairs_tr, pairs_va = _derive_then_build(lib, train_ids, val_ids, add_pivot_turns,
+                                                                         build_hhi_pairs, seed)
         note(f"{len(pairs_tr)} training and {len(pairs_va)} held-out HHI pairs")
         if not pairs_tr:
             raise RemogenError(f"no training clip fits an HHI pair rule (walks, turns, gestures, standing clips), so "
@@ -77,10 +78,8 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         note(f"building scenes for {len(train_ids) + len(val_ids)} clips (detour copies of straight walks, then "
              "obstacles and goals) ...")
         # detour-and-stop copies of straight walks: the data has no stop at a target, no walk around anything
-        lib, arrivals = add_arrivals(lib, train_ids + val_ids, seed=seed)
-        train_ids, val_ids = _add_derived(lib, train_ids, val_ids, arrivals)
-        scenes_tr = build_hsi_scenes(lib, train_ids, seed=seed)
-        scenes_va = build_hsi_scenes(lib, val_ids, seed=seed + 1)
+        lib, train_ids, val_ids, scenes_tr, scenes_va = _derive_then_build(lib, train_ids, val_ids, add_arrivals,
+                                                                           build_hsi_scenes, seed)
         note(f"{len(scenes_tr)} training and {len(scenes_va)} held-out HSI scenes")
     tr = SegmentSampler(lib, train_ids, model.cfg, model.stats, seed=seed * 1000 + rank, pairs=pairs_tr,
                         scenes=scenes_tr)
