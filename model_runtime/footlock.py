@@ -55,12 +55,9 @@ def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
 
 
 def global_rotations(local_rot: np.ndarray) -> np.ndarray:
-    """(22, 3, 3) local -> world rotations."""
-    glob = np.empty_like(local_rot)
-    glob[0] = local_rot[0]
-    for i in range(1, len(PARENTS)):
-        glob[i] = glob[PARENTS[i]] @ local_rot[i]
-    return glob
+    """(22, 3, 3) local -> world rotations (the skeleton's FK, which computes them level by level)."""
+    from .skeleton import forward_kinematics_np
+    return forward_kinematics_np(local_rot, np.zeros(3, local_rot.dtype), world_rotations=True)[1]
 
 
 def solve_leg(glob: np.ndarray, joints: np.ndarray, leg: tuple[int, int, int, int], target: np.ndarray,
@@ -131,28 +128,34 @@ class FootLock:
             return sole < self.cfg.lift_height and speed < self.cfg.lift_speed
         return sole < self.cfg.touch_height and speed < self.cfg.touch_speed
 
-    def apply(self, local_rot: np.ndarray, joints: np.ndarray, floor: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """local_rot (22, 3, 3) and joints (22, 3) of one raw frame -> (cleaned local_rot, contacts (2,) bool).
+    def apply(self, local_rot: np.ndarray, joints: np.ndarray, world_rot: np.ndarray,
+              floor: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """One raw frame's local rotations (22, 3, 3), joints (22, 3) and world rotations (22, 3, 3) ->
+        (local rotations with planted feet pinned, contacts (2,) bool: left, right).
 
-        The caller recomputes joints from the returned rotations (the pelvis is not moved)."""
-        out = local_rot.copy()
-        glob = None
+        Without `locks` only the contacts are tracked and the rotations come back unchanged. The caller
+        recomputes joints from the returned rotations (the pelvis is not moved)."""
         contacts = np.zeros(2, bool)
+        out = glob = None
         for n, (side, leg) in enumerate(LEGS.items()):
             toe = joints[leg[3]]
             in_contact = self._contact(side, toe, floor)
             self._prev_toe[side] = toe.copy()
-            if glob is None:
-                glob = global_rotations(local_rot)
             if in_contact and self._anchor[side] is None:
                 self._anchor[side] = toe.copy()
             if not in_contact and self._anchor[side] is not None:
-                self._fade[side] = (self.cfg.fade_frames, self._anchor[side])
+                self._fade[side] = (self.cfg.fade_frames, self._anchor[side]) if self.locks else None
                 self._anchor[side] = None
+            if not self.locks:
+                contacts[n] = self._anchor[side] is not None
+                continue
+            if glob is None:                    # the first leg that is solved: work on copies
+                out, glob = local_rot.copy(), world_rot.copy()
             foot = glob[leg[2]].copy()
             toe_offset = foot @ _OFFSETS[leg[3]]
             if self._anchor[side] is not None:
-                if solve_leg(glob, joints, leg, self._anchor[side] - toe_offset, foot, self.cfg.reach, self.cfg.max_miss):
+                if solve_leg(glob, joints, leg, self._anchor[side] - toe_offset, foot, self.cfg.reach,
+                             self.cfg.max_miss):
                     contacts[n] = True
                 else:                                   # out of reach: let this foot go
                     self._fade[side] = (self.cfg.fade_frames, self._anchor[side])
@@ -164,4 +167,4 @@ class FootLock:
                 solve_leg(glob, joints, leg, target - toe_offset, foot, self.cfg.reach, self.cfg.max_miss)
                 self._fade[side] = (left - 1, anchor) if left > 1 else None
             local_from_global(glob, leg[:3], out)
-        return out, contacts
+        return (local_rot if out is None else out), contacts

@@ -55,12 +55,12 @@ def _frame_from_world_features(index: int, feat_world: torch.Tensor, feet: FootL
     f = feat_world.numpy()
     rot = rot6d_to_matrix_np(f[ROT6D].reshape(NUM_JOINTS, 6))
     pelvis = f[ROOT_T]
-    joints = forward_kinematics_np(rot, pelvis)
+    joints, world = forward_kinematics_np(rot, pelvis, world_rotations=True)
     if np.isfinite(joints).all():
-        cleaned, contacts = feet.apply(rot.astype(np.float64), joints.astype(np.float64))
-        if feet.locks:
+        cleaned, contacts = feet.apply(rot, joints, world)
+        if cleaned is not rot:                  # a leg was solved: the joints follow the new rotations
             rot = cleaned
-            joints = forward_kinematics_np(rot, pelvis.astype(np.float64))
+            joints = forward_kinematics_np(rot, pelvis)
     else:
         contacts = np.zeros(2, bool)    # reported as a model output problem by the caller
     root = np.eye(4, dtype=np.float32)

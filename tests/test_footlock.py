@@ -2,7 +2,6 @@
 import math
 
 import numpy as np
-import pytest
 
 from model_runtime.footlock import LEGS, FootLock, global_rotations, solve_leg
 from model_runtime.joints import standing_pelvis_height
@@ -58,8 +57,7 @@ def test_planted_toe_stays_within_5mm_while_the_body_slides():
     lock = FootLock()
     toes, contacts = [], []
     for p in pelvis:
-        joints = forward_kinematics_np(rot, p)
-        cleaned, c = lock.apply(rot, joints)
+        cleaned, c = lock.apply(rot, *forward_kinematics_np(rot, p, world_rotations=True))
         toes.append(forward_kinematics_np(cleaned, p)[[10, 11]])
         contacts.append(c)
     toes, contacts = np.array(toes), np.array(contacts)
@@ -73,10 +71,11 @@ def test_planted_toe_stays_within_5mm_while_the_body_slides():
 def test_lifted_feet_are_not_locked_and_a_far_pelvis_lets_go():
     rot, pelvis = _sliding_stance(frames=30, slide=0.05)   # 1.5 m: no leg reaches that far back
     lock = FootLock()
-    contacts = np.array([lock.apply(rot, forward_kinematics_np(rot, p))[1] for p in pelvis])
+    contacts = np.array([lock.apply(rot, *forward_kinematics_np(rot, p, world_rotations=True))[1] for p in pelvis])
     assert contacts[:3].all()
     assert not contacts.all(axis=1).all()               # out of reach, a foot lets go (and plants again later)
     air = _crouched_rest()
     lock.reset()
-    _, c = lock.apply(air, forward_kinematics_np(air, np.array([0.0, 0.0, standing_pelvis_height() + 0.3])))
+    _, c = lock.apply(air, *forward_kinematics_np(air, np.array([0.0, 0.0, standing_pelvis_height() + 0.3]),
+                                                world_rotations=True))
     assert not c.any()
