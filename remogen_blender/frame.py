@@ -178,9 +178,6 @@ class FrameDriver:
     def latest_index(self) -> int:
         return self.frames[-1].index if self.frames else -1
 
-    def _frame(self, k: int) -> Any:
-        return self.frames[min(max(k - self.first_index, 0), len(self.frames) - 1)]
-
     def pose_at(self, model_time: float) -> Pose:
         """The pose at one model time already generated (live and frame-change; see poses_at)."""
         p = self.poses_at(np.array([model_time]))

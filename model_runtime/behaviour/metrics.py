@@ -10,12 +10,12 @@ import numpy as np
 
 from ..data.pairs import facing_xy as hip_facing  # noqa: F401  (one definition each, shared with evaluation)
 from ..data.pairs import min_clearance as min_joint_clearance  # noqa: F401
+from ..evaluation.metrics import FEET as TOES  # noqa: F401  (SMPL-X "foot" joints sit at the toe base)
 from ..evaluation.metrics import facing_error_deg  # noqa: F401
-from ..joints import JOINT_INDEX, SOLE_BELOW_FOOT_JOINT
+from ..evaluation.metrics import grounded_foot_speeds
 
 FPS = 10.0
 SEAM_PERIOD = 8                 # model frames per segment: frame k * 8 (k >= 1) starts a new segment
-TOES = (JOINT_INDEX["left_foot"], JOINT_INDEX["right_foot"])   # SMPL-X "foot" joints sit at the toe base
 PLANTED_HEIGHT = 0.02           # m: a toe whose sole is this close to the floor counts as planted
 REACH_RADIUS = 0.5              # m: a goal counts as reached once the pelvis is this close (horizontally)
 SETTLE_S = 2.0                  # s: "does it stop": distance to the goal this long after arrival
@@ -72,11 +72,8 @@ def planted_toe_speed(joints: np.ndarray, floor: float = 0.0, height: float = PL
 
     Pooled over both toes; concatenate several sequences' outputs and take the mean.
     """
-    j = np.asarray(joints, np.float64)[:, list(TOES), :]
-    down = (j[..., 2] - SOLE_BELOW_FOOT_JOINT - floor) < height
-    both = down[1:] & down[:-1]
-    speed = np.linalg.norm(np.diff(j[..., :2], axis=0), axis=-1) * FPS
-    return speed[both]
+    # the evaluation's grounded-foot measure (cm per frame, same toe joints) with the tighter planted height
+    return grounded_foot_speeds(joints, floor, contact=height) / 100.0 * FPS
 
 
 def heading_deg(joints: np.ndarray) -> np.ndarray:

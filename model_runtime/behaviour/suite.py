@@ -58,7 +58,7 @@ def text_measures(ego: np.ndarray) -> dict:
 
 def episode_metrics(ep: Episode, ego: np.ndarray) -> dict:
     """Every metric that applies to this episode's family."""
-    out = {"seam_ratio": M.seam_ratio(ego), "toe_speeds": M.planted_toe_speed(ego),
+    out = {"toe_speeds": M.planted_toe_speed(ego),
            "seam_steps": _seam_split(ego)}
     if ep.partner is not None:
         out["min_clearance_m"] = M.min_joint_clearance(ego, ep.partner)
