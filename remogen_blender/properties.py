@@ -3,9 +3,11 @@ import bpy
 from bpy.props import (BoolProperty, CollectionProperty, FloatProperty, IntProperty, PointerProperty,
                        StringProperty)
 
-# Hard limits (Blender clamps to them): classifier-free guidance far beyond the trained range only makes
-# the output blow up (1e30 gives NaN joints); the seed is a 32-bit property.
-GUIDANCE_MAX = 20.0
+from ._runtime import api
+
+# Hard limits (Blender clamps to them): the runtime's own guidance bound (far beyond the trained range the
+# output blows up: 1e30 gives NaN joints); the seed is a 32-bit property.
+GUIDANCE_MAX = float(api().MAX_GUIDANCE)
 SEED_MAX = 2**31 - 1
 _GUIDANCE_HELP = f"Classifier-free guidance on the text (0 to {GUIDANCE_MAX:g})"
 
