@@ -36,11 +36,11 @@ from .quat import continuous_quaternions, matrix_to_quat_np, qconj, qmul, qslerp
 _LAZY = {
     "load_model": ".checkpoint", "save_model": ".checkpoint",
     "ReactionSession": ".session", "EgoFrame": ".session",
-    "OccupancyGrid": ".voxel",
+    "OccupancyGrid": ".voxel", "ControlConfig": ".control",
     "Motion": ".data.motion", "load_motion": ".data.motion",
 }
 
-__all__ = ["load_model", "save_model", "ReactionSession", "EgoFrame", "OccupancyGrid", "ModelConfig",
+__all__ = ["load_model", "save_model", "ReactionSession", "EgoFrame", "OccupancyGrid", "ModelConfig", "ControlConfig",
            "RemogenError", "InputError", "ModelFileError", "ModelOutputError", "MAX_COORD", "MAX_GUIDANCE",
            "Motion", "load_motion",
            "WALK_CLIP", "JOINT_NAMES", "NUM_JOINTS", "PARENTS", "rest_joints_np", "standing_pelvis_height",

@@ -4,9 +4,10 @@
 
 One JSON object per line: {"config", "mode", "p50_ms", "p99_ms", "mean_ms", "max_ms", "frames", "threads"}.
 Modes: "segment" (segment rollout, diffusion spread over the running segment's frames), "fwsr"
-(the same plus Frame-wise Segment Refinement every frame), "fwsr-raw" (fwsr without the planted-foot
-cleanup, which every other mode has on, as the runtime does by default), "slide" (a full diffusion
-every frame, the paper's ablation). Batch 1, after warm-up, with a partner walking in, a box scene and a goal,
+(the same plus Frame-wise Segment Refinement every frame), "fwsr-nocontrol" (fwsr without test-time
+control), "fwsr-raw" (fwsr without control and without the planted-foot cleanup), "slide" (a full
+diffusion every frame, the paper's ablation). Every mode but those two has control and cleanup on, as the
+runtime does by default. Batch 1, after warm-up, with a partner walking in, a box scene and a goal,
 so both Meta-Interaction Modules run. Weights are random unless --model is given: speed does not
 depend on their values.
 """
@@ -32,7 +33,7 @@ def run_case(model, mode: str, frames: int, warmup: int, scene) -> dict:
     session = ReactionSession(model, text="walk to the person and wave", seed=0,
                               alpha={"hhi": 1.0, "hsi": 1.0}, guidance=5.0,
                               fwsr=mode.startswith("fwsr"), scene=scene, slide=(mode == "slide"),
-                              cleanup=(mode != "fwsr-raw"))
+                              cleanup=(mode != "fwsr-raw"), control=mode not in ("fwsr-raw", "fwsr-nocontrol"))
     session.reset(root_position=(0.0, 0.0, 0.0), yaw=0.0)
     partner = approaching_partner(warmup + frames)
     goal = BOX_GOAL
@@ -53,8 +54,9 @@ def main(argv: list[str] | None = None) -> int:
                                  formatter_class=HelpFormatter)
     ap.add_argument("--json", action="store_true", help="print JSON lines only")
     ap.add_argument("--configs", default="default,paper", help="comma-separated model presets: tiny, default, paper")
-    ap.add_argument("--modes", default="segment,fwsr,fwsr-raw,slide",
-                    help="comma-separated modes: segment, fwsr, fwsr-raw (no foot cleanup), slide")
+    ap.add_argument("--modes", default="segment,fwsr,fwsr-nocontrol,fwsr-raw,slide",
+                    help="comma-separated modes: segment, fwsr, fwsr-nocontrol (no test-time control), "
+                         "fwsr-raw (no control, no foot cleanup), slide")
     ap.add_argument("--frames", type=int, default=300, help="timed frames per case (segment and fwsr modes)")
     ap.add_argument("--slide-frames", type=int, default=300, help="timed frames for the (slow) slide mode")
     ap.add_argument("--warmup", type=int, default=24, help="untimed frames before timing")

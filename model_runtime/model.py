@@ -1,6 +1,8 @@
 """ReMoGenModel: the networks of one checkpoint and the operations the session and training use."""
 from __future__ import annotations
 
+from typing import Callable
+
 import torch
 from torch import nn
 
@@ -219,18 +221,35 @@ class ReMoGenModel(nn.Module):
 
 
 class DiffusionJob:
-    """The reverse diffusion of one segment as a resumable object, so its steps can be spread over frames."""
+    """The reverse diffusion of one segment as a resumable object, so its steps can be spread over frames.
+
+    With `steer` (test-time control), the predicted x0 of the last `steered_steps` denoising steps is moved
+    by it, and then the clean latent takes `final_steers` more of its steps: those last ones stay in the
+    result in full, where earlier ones are partly undone by the denoising that follows them.
+    """
 
     def __init__(self, model: ReMoGenModel, hist: torch.Tensor, text_emb: torch.Tensor, contexts: Contexts,
-                 alpha: dict[str, float], guidance: float, generator: torch.Generator) -> None:
+                 alpha: dict[str, float], guidance: float, generator: torch.Generator,
+                 steer: Callable[[torch.Tensor], torch.Tensor] | None = None, steered_steps: int = 0,
+                 final_steers: int = 0) -> None:
         self.model, self.hist, self.text_emb, self.contexts = model, hist, text_emb, contexts
+        self.steer = steer
+        self.steered_steps = steered_steps if steer is not None else 0
+        self.final_steers = final_steers if steer is not None else 0
         self._cache: dict = {}
         self.alpha, self.guidance, self.gen = dict(alpha), float(guidance), generator
         cfg = model.cfg
         shape = (hist.shape[0], cfg.latent_tokens, cfg.latent_dim)
         self.z = torch.randn(shape, generator=generator)
         self.t = cfg.diffusion_steps - 1
+        self._clean: torch.Tensor | None = None     # the denoised latent while final steers remain
+        self._steers_left = self.final_steers
         self.result: torch.Tensor | None = None
+
+    @property
+    def total_steps(self) -> int:
+        """Units of work from start to result: denoising steps plus final steering steps."""
+        return self.model.cfg.diffusion_steps + self.final_steers
 
     @property
     def done(self) -> bool:
@@ -238,21 +257,29 @@ class DiffusionJob:
 
     def snapshot(self) -> tuple:
         """The progress `advance` changes (not the shared generator: its owner saves that)."""
-        return self.z, self.t, self.result, dict(self._cache)
+        return self.z, self.t, self._clean, self._steers_left, self.result, dict(self._cache)
 
     def restore(self, snap: tuple) -> None:
-        self.z, self.t, self.result, cache = snap
+        self.z, self.t, self._clean, self._steers_left, self.result, cache = snap
         self._cache = dict(cache)
 
     def advance(self, steps: int) -> None:
         for _ in range(steps):
             if self.done:
                 return
-            x0 = self.model.predict_x0(self.z, self.t, self.hist, self.text_emb, self.contexts,
-                                       self.alpha, self.guidance, self._cache)
-            if self.t == 0:
-                self.result = x0
+            if self._clean is not None:
+                self._clean = self.steer(self._clean)
+                self._steers_left -= 1
             else:
-                noise = torch.randn(self.z.shape, generator=self.gen)
-                self.z = self.model.schedule.step(self.z, self.t, x0, noise)
-                self.t -= 1
+                x0 = self.model.predict_x0(self.z, self.t, self.hist, self.text_emb, self.contexts,
+                                           self.alpha, self.guidance, self._cache)
+                if self.t < self.steered_steps:
+                    x0 = self.steer(x0)
+                if self.t == 0:
+                    self._clean = x0
+                else:
+                    noise = torch.randn(self.z.shape, generator=self.gen)
+                    self.z = self.model.schedule.step(self.z, self.t, x0, noise)
+                    self.t -= 1
+            if self._clean is not None and self._steers_left == 0:
+                self.result = self._clean

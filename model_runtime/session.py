@@ -20,12 +20,15 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from functools import lru_cache
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
 import torch
 
+from .control import ControlConfig, ControlTargets, LatentSteer, SegmentCosts, partner_future
+from .distance_field import DistanceField
 from .errors import MAX_COORD, MAX_GUIDANCE, InputError, ModelOutputError
 from .features import (ROOT_T, ROT6D, canonical_frame, feature_joints, features_from_pose, to_canonical,
                        to_world, world_points_to_canonical)
@@ -150,16 +153,60 @@ def _output_problem(feat_world: torch.Tensor, frame: EgoFrame) -> str | None:
     return None
 
 
+# Cost of one denoising step in units of a plain step: a steered step adds a decoder forward and backward.
+STEERED_STEP_COST = 2.5
+# The boundary frame (f = 0) also decodes a segment and encodes contexts: about this many plain steps.
+BOUNDARY_COST = 1.0
+
+
+@lru_cache(maxsize=64)
+def steps_per_frame(steps: int, frames: int, steered: int) -> tuple[int, ...]:
+    """Denoising steps per frame of a segment, spreading the job's cost evenly over its frames.
+
+    Steps run in order and the last `steered` of them cost STEERED_STEP_COST each; frame 0 starts with
+    BOUNDARY_COST already spent. The split minimises the sum of squared frame costs (so both the typical and
+    the worst frame stay low), by dynamic programming over (steps done, frame). Sums to `steps`.
+    """
+    if steps * steps * frames > 2_000_000:     # research configs with very many steps: an even split
+        base, extra = divmod(steps, frames)
+        return tuple(base + (1 if i >= frames - extra else 0) for i in range(frames))
+    cost = [STEERED_STEP_COST if t < steered else 1.0 for t in range(steps - 1, -1, -1)]
+    prefix = [0.0]
+    for c in cost:
+        prefix.append(prefix[-1] + c)
+    inf = float("inf")
+    # best[f][i]: least sum of squares with the first i steps done by the end of frame f
+    best = [[inf] * (steps + 1) for _ in range(frames)]
+    choice = [[0] * (steps + 1) for _ in range(frames)]
+    for i in range(steps + 1):
+        best[0][i] = (BOUNDARY_COST + prefix[i]) ** 2
+    for f in range(1, frames):
+        for i in range(steps + 1):
+            for j in range(i + 1):
+                v = best[f - 1][j] + (prefix[i] - prefix[j]) ** 2
+                if v < best[f][i] - 1e-12:
+                    best[f][i], choice[f][i] = v, j
+    out, i = [0] * frames, steps
+    for f in range(frames - 1, 0, -1):
+        j = choice[f][i]
+        out[f], i = i - j, j
+    out[0] = i
+    return tuple(out)
+
+
 class ReactionSession:
     """Online reaction generation. See module docstring for the scheduling."""
 
     def __init__(self, model: ReMoGenModel, text: str = "", seed: int = 0, alpha: dict | None = None,
                  guidance: float = 5.0, fwsr: bool = True, scene: Any = None, slide: bool = False,
-                 cleanup: bool = True) -> None:
+                 cleanup: bool = True, control: bool = True, control_config: ControlConfig | None = None) -> None:
         self.model = model.eval()
         self.cfg = model.cfg
         self._feet = FootLock()
         self.cleanup = cleanup
+        self.control = control
+        self.control_config = control_config if control_config is not None else ControlConfig()
+        self._field: tuple[Any, DistanceField] | None = None   # (grid, its distance field), built on first use
         self.seed = seed
         self.slide = bool(slide)
         self._job: DiffusionJob | None = None
@@ -168,12 +215,6 @@ class ReactionSession:
         self.guidance = guidance
         self.fwsr = fwsr
         self.scene = scene
-        f = self.cfg.future
-        steps = self.cfg.diffusion_steps
-        # Denoising steps per frame of a segment; the boundary frame (f = 0) also decodes and encodes
-        # contexts, so it gets the fewest. Sums to the number of diffusion steps.
-        base, extra = divmod(steps, f)
-        self._steps_at = [base + (1 if i >= f - extra else 0) for i in range(f)]
         self.reset()
 
     # ------------------------------------------------------------------ live settings
@@ -226,6 +267,25 @@ class ReactionSession:
         self._feet.locks = bool(value)
 
     @property
+    def control(self) -> bool:
+        """Test-time control (control.py): steer each segment with cost gradients. From the next segment on."""
+        return self._control
+
+    @control.setter
+    def control(self, value: bool) -> None:
+        self._control = bool(value)
+
+    @property
+    def control_config(self) -> ControlConfig:
+        return self._control_config
+
+    @control_config.setter
+    def control_config(self, value: ControlConfig) -> None:
+        if not isinstance(value, ControlConfig):
+            raise InputError("control_config must be a model_runtime.ControlConfig")
+        self._control_config = value
+
+    @property
     def fwsr(self) -> bool:
         return self._fwsr
 
@@ -274,7 +334,7 @@ class ReactionSession:
         self._feet.reset()
 
     # ------------------------------------------------------------------ stepping
-    @torch.inference_mode()
+    @torch.no_grad()     # not inference_mode: test-time control takes gradients inside a step
     def step(self, partner: Any = None, goal: Any = None) -> EgoFrame:
         """Advance one model frame (0.1 s). partner: (22, 3) world joints or None; goal: (x, y, z) or None.
 
@@ -332,8 +392,11 @@ class ReactionSession:
             seg = self._seg = self._start_segment(job.result)
             predicted = to_world(self.model.stats.denormalize(seg["future"][0, -self.cfg.history:]),
                                  seg["rot"], seg["trans"])
-            self._job = self._new_job(predicted)
+            self._job = self._new_job(predicted, lead=self.cfg.future)
         f = seg["f"]
+        if f == 0:
+            job = self._job
+            seg["steps_at"] = steps_per_frame(job.total_steps, self.cfg.future, job.steered_steps + job.final_steers)
         if self._fwsr and f >= 1:
             # the latest H emitted frames, already canonical and normalised in this segment's frame
             recent = seg["emitted"][-self.cfg.history:].unsqueeze(0)
@@ -346,20 +409,20 @@ class ReactionSession:
         else:
             feat_n = seg["future"][0, f]
         seg["emitted"] = torch.cat((seg["emitted"], feat_n.unsqueeze(0)), 0)
-        self._job.advance(self._steps_at[f])
+        self._job.advance(seg["steps_at"][f])
         seg["f"] = f + 1
         return to_world(self.model.stats.denormalize(feat_n).unsqueeze(0), seg["rot"], seg["trans"])[0]
 
     def _finish_job(self) -> DiffusionJob:
         """The finished diffusion for the segment about to start (all of it now after a reset)."""
-        job = self._job if self._job is not None else self._new_job(self._hist_world)
-        job.advance(self.cfg.diffusion_steps)  # a no-op when the spread schedule already finished it
+        job = self._job if self._job is not None else self._new_job(self._hist_world, lead=0)
+        job.advance(job.total_steps)  # a no-op when the spread schedule already finished it
         self._job = None
         return job
 
     def _slide_frame(self) -> torch.Tensor:
-        job = self._new_job(self._hist_world)
-        job.advance(self.cfg.diffusion_steps)
+        job = self._new_job(self._hist_world, lead=0)
+        job.advance(job.total_steps)
         seg = self._start_segment(job.result)
         return to_world(self.model.stats.denormalize(seg["future"][0, :1]), seg["rot"], seg["trans"])[0]
 
@@ -370,12 +433,37 @@ class ReactionSession:
         return {"rot": rot, "trans": trans, "hist_n": hist_n, "z0": z0,
                 "future": self.model.decode(hist_n, z0), "f": 0, "emitted": hist_n[0]}
 
-    def _new_job(self, hist_world: torch.Tensor) -> DiffusionJob:
-        """A diffusion job for the segment that starts after `hist_world` (real or predicted)."""
+    def _new_job(self, hist_world: torch.Tensor, lead: int) -> DiffusionJob:
+        """A diffusion job for the segment that starts after `hist_world` (real or predicted), whose first
+        frame plays `lead` frames after the latest partner frame."""
         rot, trans = canonical_frame(feature_joints(hist_world[0]))
         hist_n = self.model.stats.normalize(to_canonical(hist_world, rot, trans)).unsqueeze(0)
         contexts = self._encode_contexts(rot, trans)
-        return DiffusionJob(self.model, hist_n, self._text_emb, contexts, self._alpha, self._guidance, self._gen)
+        steer = self._steer(hist_n, rot, trans, lead) if self._control else None
+        cc = self._control_config
+        return DiffusionJob(self.model, hist_n, self._text_emb, contexts, self._alpha, self._guidance, self._gen,
+                            steer=steer, steered_steps=cc.steered_steps, final_steers=cc.final_steers)
+
+    def _steer(self, hist_n: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor, lead: int) -> LatentSteer:
+        """Test-time control of one job: its costs' targets in the job's canonical frame."""
+        cc = self._control_config
+        targets = ControlTargets(alpha_hhi=self._alpha["hhi"], alpha_hsi=self._alpha["hsi"])
+        if targets.alpha_hhi > 0.0:
+            window, present = self._partner_window(rot, trans, self.cfg.partner_window)
+            targets.partner, targets.partner_still = partner_future(window[0], present[0], lead + 1,
+                                                                    self.cfg.future + int(cc.look_ahead), cc)
+        if targets.alpha_hsi > 0.0:
+            if self._scene is not None:
+                targets.field, targets.to_world = self._distance_field(), (rot, trans)
+            if self._goal is not None:
+                targets.goal_xy = world_points_to_canonical(torch.as_tensor(self._goal).view(1, 3), rot, trans)[0, :2]
+        return LatentSteer(self.model, hist_n, SegmentCosts(self.model.stats, hist_n, targets, cc), cc)
+
+    def _distance_field(self) -> DistanceField:
+        """The scene's distance field, built once per grid (a grid never changes once built)."""
+        if self._field is None or self._field[0] is not self._scene:
+            self._field = (self._scene, DistanceField(self._scene))
+        return self._field[1]
 
     def _encode_contexts(self, rot: torch.Tensor, trans: torch.Tensor) -> Contexts:
         partner, present = self._partner_window(rot, trans, self.cfg.partner_window)

@@ -59,15 +59,15 @@ def test_alpha_zero_everywhere_gives_exactly_the_prior(tiny_model):
 
 @pytest.mark.parametrize("cleanup", [False, True])
 def test_session_with_alpha_zero_matches_prior_only_session(tiny_model, cleanup):
-    """With cleanup off, alpha 0 is the prior bit for bit; with the planted-foot cleanup on, alpha 0 still
-    reads no partner (the frames equal those of a run without one)."""
+    """With control and cleanup off, alpha 0 is the prior bit for bit; with test-time control and the
+    planted-foot cleanup on, alpha 0 still reads no partner (the frames equal those of a run without one)."""
     from model_runtime.bench import approaching_partner
     partner = approaching_partner(20)
     frames = {}
     for name, alpha, use_partner in (("prior", {"hhi": 1.0, "hsi": 1.0}, False),
                                      ("zero", {"hhi": 0.0, "hsi": 0.0}, True),
                                      ("on", {"hhi": 1.0, "hsi": 0.0}, True)):
-        s = ReactionSession(tiny_model, text="walk", seed=3, alpha=alpha, fwsr=False, cleanup=cleanup)
+        s = ReactionSession(tiny_model, text="walk", seed=3, alpha=alpha, fwsr=False, cleanup=cleanup, control=cleanup)
         s.reset()
         frames[name] = np.stack([s.step(partner=partner[i] if use_partner else None).joints for i in range(20)])
     assert np.array_equal(frames["prior"], frames["zero"])

@@ -55,7 +55,8 @@ def test_fwsr_off_emits_exactly_the_segment_decodes(tiny_model):
     """Reference rollout from model primitives: full diffusion, decode, slide history; same RNG order."""
     m = tiny_model
     cfg = m.cfg
-    s = ReactionSession(m, text="walk", seed=11, fwsr=False, alpha={"hhi": 0.0, "hsi": 0.0}, cleanup=False)
+    s = ReactionSession(m, text="walk", seed=11, fwsr=False, alpha={"hhi": 0.0, "hsi": 0.0}, cleanup=False,
+                        control=False)
     s.reset()
     hist_world = s.history_world_features()
     got = [s.step() for _ in range(2 * cfg.future)]

@@ -30,7 +30,7 @@ def roll_out(model, ep: Episode, alpha: float, *, guidance: float = 5.0, **sessi
     """(frames, 22, 3) world joints of the ego in one episode, both interaction alphas set to `alpha`."""
     from ..session import ReactionSession
     s = ReactionSession(model, text=ep.text, seed=ep.seed, alpha={"hhi": alpha, "hsi": alpha},
-                        guidance=guidance, fwsr=True, scene=scene_grid(ep), **session_options)
+                        guidance=guidance, scene=scene_grid(ep), **{"fwsr": True, **session_options})
     s.reset(root_position=(0.0, 0.0, 0.0), yaw=0.0)
     out = np.empty((ep.frames, 22, 3), np.float32)
     for i in range(ep.frames):

@@ -1,0 +1,171 @@
+"""Test-time control: each cost's gradient points the right way, the distance field is a distance, steering
+lowers the cost, and the alpha sliders switch the interaction costs off."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from model_runtime.control import (ControlConfig, ControlTargets, LatentSteer, SegmentCosts, facing_cost,
+                                   foot_cost, goal_cost, partner_cost, partner_future, scene_cost)
+from model_runtime.distance_field import DistanceField, signed_distance
+from model_runtime.features import canonical_frame, feature_joints, to_canonical
+from model_runtime.fixtures import approaching_partner, box_scene
+from model_runtime.joints import JOINT_INDEX, SOLE_BELOW_FOOT_JOINT
+from model_runtime.session import STEERED_STEP_COST, ReactionSession, steps_per_frame
+from model_runtime.skeleton import rest_joints, standing_pelvis_height
+
+CFG = ControlConfig()
+TOE = JOINT_INDEX["left_foot"]
+
+
+def standing_body(x: float = 0.0, y: float = 0.0) -> torch.Tensor:
+    """(22, 3) rest body standing on the floor at (x, y), facing -Y."""
+    return rest_joints() + torch.tensor([x, y, standing_pelvis_height()])
+
+
+def grad_of(cost_fn, x: torch.Tensor) -> torch.Tensor:
+    x = x.clone().requires_grad_(True)
+    (g,) = torch.autograd.grad(cost_fn(x), x)
+    return g
+
+
+def test_partner_cost_pushes_the_ego_away_from_the_partner():
+    ego = standing_body().expand(4, -1, -1)
+    partner = standing_body(0.2, 0.0).expand(4, -1, -1)
+    g = grad_of(lambda j: partner_cost(j, partner, 0.35), ego)
+    # descending the gradient moves the ego's pelvis toward -x, away from the partner at +x
+    assert -g[..., 0, 0].sum() < 0
+    assert partner_cost(ego, standing_body(3.0, 0.0).expand(4, -1, -1), 0.35) == 0.0
+
+
+def test_partner_cost_counts_the_partner_after_the_segment_against_its_last_pose():
+    ego = standing_body().expand(4, -1, -1)
+    far = standing_body(3.0, 0.0).expand(4, -1, -1)
+    later_here = torch.cat((far, standing_body().expand(4, -1, -1)), 0)
+    assert partner_cost(ego, far, 0.35) == 0.0
+    assert partner_cost(ego, later_here, 0.35) > 0.0
+
+
+def test_facing_cost_turns_toward_the_target():
+    body = standing_body().unsqueeze(0)       # faces -Y
+    ahead, behind = torch.tensor([0.0, -2.0]), torch.tensor([0.0, 2.0])
+    assert facing_cost(body, ahead) < 1e-3 < facing_cost(body, behind)
+
+
+def test_scene_distance_field_matches_an_exact_transform_and_pushes_out_of_a_box():
+    scipy_ndimage = pytest.importorskip("scipy.ndimage")
+    occ = np.zeros((30, 30, 20), bool)
+    occ[10:18, 12:20, 0:10] = True
+    sdf = signed_distance(occ, 0.05, reach=0.5)
+    exact = scipy_ndimage.distance_transform_edt(~occ) * 0.05 - scipy_ndimage.distance_transform_edt(occ) * 0.05
+    # the exact transform counts an inside cell's distance to the nearest free cell; so do we (as negative)
+    outside_near = (exact > 0) & (exact < 0.45)
+    assert np.abs(sdf[outside_near] - exact[outside_near]).max() < 1e-5
+    assert (sdf[occ] < 0).all() and (sdf[~occ] > 0).all()
+
+    field = DistanceField(box_scene())          # a 0.8 m box spanning x -0.4..0.4, y -1.9..-1.1, z 0..0.8
+    inside = torch.tensor([[0.3, -1.5, 0.4]])
+    outside = torch.tensor([[0.6, -1.5, 0.4]])
+    assert float(field(inside)) < 0 < float(field(outside)) < 0.3
+    g = grad_of(lambda p: scene_cost(p, field, 0.12), inside)
+    assert -g[0, 0] > 0                          # out through the nearest face (+x)
+    assert float(field(torch.tensor([[50.0, 50.0, 1.0]]))) == field.reach   # beyond the grid: far
+
+
+def test_goal_cost_pulls_toward_the_goal_then_holds_still_on_it():
+    start = torch.zeros(2)
+    goal = torch.tensor([0.0, -3.0])
+    pelvis = torch.zeros(8, 3)
+    g = grad_of(lambda p: goal_cost(p, start, goal, CFG), pelvis)
+    assert -g[-1, 1] < 0                         # the last frame is pulled toward -Y, where the goal is
+    wandering = torch.zeros(8, 3)
+    wandering[:, 0] = torch.linspace(0.0, 0.4, 8)
+    on_goal = goal_cost(torch.zeros(8, 3), start, torch.tensor([0.05, 0.0]), CFG)
+    moving = goal_cost(wandering, start, torch.tensor([0.05, 0.0]), CFG)
+    assert on_goal < moving                      # near the goal, standing still on it costs least
+
+
+def test_foot_cost_stops_a_planted_toe_sliding_and_lifts_joints_out_of_the_floor():
+    body = standing_body()
+    frames = body.expand(4, -1, -1).clone()
+    frames[:, TOE, 0] = torch.tensor([0.0, 0.05, 0.10, 0.15])       # a planted toe sliding along +x
+    g = grad_of(lambda j: foot_cost(j, body, CFG), frames)
+    assert -g[-1, TOE, 0] < 0                                       # pulled back against the slide
+    sunk = body.expand(2, -1, -1).clone()
+    sunk[:, TOE, 2] = SOLE_BELOW_FOOT_JOINT - 0.03                  # sole 3 cm under the floor
+    g = grad_of(lambda j: foot_cost(j, body, CFG), sunk)
+    assert -g[:, TOE, 2].sum() > 0                                  # pushed up
+
+
+def test_partner_future_extrapolates_a_walk_and_spots_a_standing_partner():
+    walk = torch.as_tensor(approaching_partner(10, start=4.0, stop=1.0, speed=1.0))
+    future, still = partner_future(walk, torch.ones(10, dtype=torch.bool), lead=1, frames=3, cfg=CFG)
+    step = float(walk[-1, 0, 1] - walk[-2, 0, 1])
+    assert torch.allclose(future[0, 0, 1], walk[-1, 0, 1] + step, atol=1e-4) and not still
+    standing = torch.as_tensor(approaching_partner(40, start=4.0, stop=1.0, speed=1.0))[-10:]   # stopped 1 m away
+    _, still = partner_future(standing, torch.ones(10, dtype=torch.bool), lead=1, frames=3, cfg=CFG)
+    assert still
+    none, _ = partner_future(walk, torch.zeros(10, dtype=torch.bool), lead=1, frames=3, cfg=CFG)
+    assert none is None
+
+
+def test_steering_lowers_the_segment_cost(tiny_model):
+    m = tiny_model
+    s = ReactionSession(m, text="walk", seed=0, control=False)
+    s.reset()
+    hist_world = s.history_world_features()
+    rot, trans = canonical_frame(feature_joints(hist_world[0]))
+    hist_n = m.stats.normalize(to_canonical(hist_world, rot, trans)).unsqueeze(0)
+    partner = standing_body(0.1, 0.0).expand(m.cfg.future + 4, -1, -1)
+    costs = SegmentCosts(m.stats, hist_n, ControlTargets(partner=partner, alpha_hhi=1.0), CFG)
+    steer = LatentSteer(m, hist_n, costs, CFG)
+    z = torch.randn(1, m.cfg.latent_tokens, m.cfg.latent_dim, generator=torch.Generator().manual_seed(0))
+    with torch.no_grad():
+        before = float(costs(m.decode(hist_n, z)))
+        after = float(costs(m.decode(hist_n, steer(z))))
+    assert after < before
+
+
+def test_steps_per_frame_spreads_every_step_and_evens_out_steered_ones():
+    assert steps_per_frame(10, 8, 0) in ((1, 1, 1, 1, 1, 1, 2, 2), (0, 1, 1, 1, 1, 2, 2, 2))
+    split = steps_per_frame(18, 8, 12)          # 6 plain steps, then 12 steered ones (2.5 plain steps each)
+    costs = [1.0] * 6 + [STEERED_STEP_COST] * 12
+    loads, i = [], 0
+    for n in split:
+        loads.append(sum(costs[i:i + n]))
+        i += n
+    assert i == 18 and max(loads) <= 2 * STEERED_STEP_COST      # never more than two steered steps a frame
+    assert sum(steps_per_frame(1000, 64, 4)) == 1000
+
+
+def test_alpha_zero_applies_no_partner_scene_or_goal_cost(tiny_model):
+    """With control on, alpha 0 gives the frames of a run without partner, scene and goal; alpha 1 does not."""
+    def run(alpha, with_cues):
+        s = ReactionSession(tiny_model, text="walk", seed=5, alpha={"hhi": alpha, "hsi": alpha}, control=True,
+                            scene=box_scene() if with_cues else None)
+        s.reset()
+        partner = approaching_partner(18, start=1.5, stop=0.3)
+        return np.stack([s.step(partner=partner[i] if with_cues else None,
+                                goal=(0.0, -2.0, 0.0) if with_cues else None).joints for i in range(18)])
+    assert np.array_equal(run(0.0, True), run(0.0, False))
+    assert not np.allclose(run(1.0, True), run(1.0, False))
+
+
+def test_control_on_changes_the_motion_and_stays_deterministic(tiny_model):
+    def run(control):
+        s = ReactionSession(tiny_model, text="walk", seed=2, control=control)
+        s.reset()
+        partner = approaching_partner(18, start=1.5, stop=0.2)
+        return np.stack([s.step(partner=partner[i], goal=(0.0, 2.0, 0.0)).joints for i in range(18)])
+    on = run(True)
+    assert np.array_equal(on, run(True))
+    assert not np.allclose(on, run(False))
+
+
+def test_bad_control_config_is_one_line():
+    from model_runtime.errors import InputError
+    with pytest.raises(InputError, match="step_size"):
+        ControlConfig(step_size=-1.0)
+    with pytest.raises(InputError, match="control_config"):
+        ReactionSession.__new__(ReactionSession).control_config = {"step_size": 1}
