@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from .distance_field import DistanceField
-from .features import JOINTS, ROOT_T, feature_joints
+from .features import ROOT_T, feature_joints
 from .joints import JOINT_INDEX, LEFT_HIP, RIGHT_HIP, SOLE_BELOW_FOOT_JOINT
 
 FPS = 10.0
