@@ -52,6 +52,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--plant-feet", dest="plant_feet", action="store_true", default=None,
                    help="keep planted feet fixed (leg IK; the default)")
     b.add_argument("--no-plant-feet", dest="plant_feet", action="store_false", help="leave the feet as generated")
+    b.add_argument("--control", dest="control", action="store_true", default=None,
+                   help="test-time control: steer around the partner and obstacles, to the goal (the default)")
+    b.add_argument("--no-control", dest="control", action="store_false", help="the learned model alone")
     b.add_argument("--frames", type=int, nargs=2, metavar=("START", "END"), help="frame range (default: scene's)")
     b.add_argument("--model", help="model file (default: the preferences', else the shipped weights)")
     b.add_argument("--threads", type=int, default=1,
@@ -230,3 +233,5 @@ def _apply(args: argparse.Namespace, scene, st) -> None:
         st.use_fwsr = args.fwsr
     if args.plant_feet is not None:
         st.use_foot_lock = args.plant_feet
+    if args.control is not None:
+        st.use_control = args.control

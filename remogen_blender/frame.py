@@ -45,6 +45,12 @@ class Pose:
     local_rotations: np.ndarray   # (22, 4)
 
 
+def _settings(st: Any) -> tuple:
+    """The panel settings a running session follows (a change is passed on before the next model frame)."""
+    return (st.text, st.seed, st.alpha_hhi, st.alpha_hsi, st.guidance, st.use_fwsr, st.use_foot_lock,
+            st.use_control)
+
+
 class FrameDriver:
     """A running ReMoGen session bound to one scene's partner, scene collection, goal and ego."""
 
@@ -68,11 +74,10 @@ class FrameDriver:
         rt = runtime()
         self.session = rt.ReactionSession(self.model, text=st.text, seed=st.seed, alpha=_alpha(st),
                                           guidance=_guidance(st), fwsr=st.use_fwsr, scene=None,
-                                          cleanup=st.use_foot_lock)
+                                          cleanup=st.use_foot_lock, control=st.use_control)
         root, yaw = self.writer.start_pose()
         self.session.reset(root_position=root, yaw=yaw)
-        self._applied = (st.text, st.seed, st.alpha_hhi, st.alpha_hsi, st.guidance, st.use_fwsr,
-                         st.use_foot_lock)
+        self._applied = _settings(st)
         self.scene_cache = SceneCache()
         self.frames: deque = deque(maxlen=keep_frames)   # EgoFrames, newest last
         self.first_index = 0                              # model index of frames[0]
@@ -95,8 +100,7 @@ class FrameDriver:
 
         The session applies them from its next segment's diffusion (within 0.8 s of model time); FWSR
         still reacts to the partner every frame."""
-        now = (st.text, st.seed, st.alpha_hhi, st.alpha_hsi, st.guidance, st.use_fwsr,
-                         st.use_foot_lock)
+        now = _settings(st)
         if now == self._applied:
             return
         s = self.session
@@ -106,6 +110,7 @@ class FrameDriver:
         s.guidance = _guidance(st)
         s.fwsr = st.use_fwsr
         s.cleanup = st.use_foot_lock
+        s.control = st.use_control
         # a new seed only matters for a new run (live restarts, bake resets); the session keeps its own
         self._applied = now
 

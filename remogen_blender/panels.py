@@ -75,6 +75,7 @@ class REMOGEN_PT_main(bpy.types.Panel):
         row.prop(st, "seed")
         row.prop(st, "use_fwsr", toggle=True)
         row.prop(st, "use_foot_lock", toggle=True)
+        row.prop(st, "use_control", toggle=True)
 
         row = layout.row(align=True)
         row.scale_y = 1.4

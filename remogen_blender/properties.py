@@ -61,6 +61,10 @@ class RemogenSettings(bpy.types.PropertyGroup):
     use_foot_lock: BoolProperty(
         name="Plant Feet", default=True,
         description="Keep a foot that touches the floor fixed there (leg IK on the generated pose)")
+    use_control: BoolProperty(
+        name="Steer", default=True,
+        description="Test-time control: steer each segment away from the partner and obstacles, toward the goal, "
+                    "and against foot sliding (the alpha sliders scale the partner and scene parts)")
 
     # Bone map storage (shown and editable in the panel).
     bone_map: CollectionProperty(type=RemogenBoneMapItem)

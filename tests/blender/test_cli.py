@@ -131,3 +131,15 @@ def test_cli_bad_values_are_one_line(fresh, tmp_path, capsys, argv, match):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "error:" in err[0] and match in err[0], err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("flag, control", [("--no-control", False), ("--control", True)])
+def test_control_flag_sets_the_steer_setting(fresh, flag, control):
+    from remogen_blender.cli import _apply, _parser
+    import scenes
+    scenes.demo_scene(fresh)
+    st = fresh.scene.remogen
+    st.use_control = not control
+    args = _parser().parse_args(["bake", "--out", "x.blend", flag])
+    _apply(args, fresh.scene, st)
+    assert st.use_control is control

@@ -68,20 +68,22 @@ def test_slider_acts_while_running(fresh):
     assert s.alpha["hsi"] == pytest.approx(0.25) and s.text == "sit down"
 
 
-def test_plant_feet_setting_reaches_the_session(fresh):
-    """The Plant Feet toggle switches the runtime's foot cleanup, at start and while running."""
+@pytest.mark.parametrize("prop, attr", [("use_foot_lock", "cleanup"), ("use_control", "control")])
+def test_plant_feet_and_steer_settings_reach_the_session(fresh, prop, attr):
+    """The Plant Feet and Steer toggles switch the runtime's foot cleanup and test-time control, at start and
+    while running."""
     from remogen_blender import live
     bpy.ops.wm.read_factory_settings(use_empty=True)
     import scenes
     scenes.demo_scene(bpy.context)
-    bpy.context.scene.remogen.use_foot_lock = False
+    setattr(bpy.context.scene.remogen, prop, False)
     assert bpy.ops.remogen.live_start() == {'FINISHED'}
     bpy.context.scene.frame_set(3)
     s = live.state().driver.session
-    assert s.cleanup is False
-    bpy.context.scene.remogen.use_foot_lock = True
+    assert getattr(s, attr) is False
+    setattr(bpy.context.scene.remogen, prop, True)
     bpy.context.scene.frame_set(5)
-    assert s.cleanup is True
+    assert getattr(s, attr) is True
     live.stop()
 
 
