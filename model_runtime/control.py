@@ -53,6 +53,8 @@ class ControlConfig:
     goal_face_distance: float = 1.0  # m
     rest_radius: float = 0.6        # m: within this of the goal the segment is asked to stand on it
     rest_weight: float = 20.0
+    seam_weight: float = 100.0      # the first frame continues the history's joint velocities ...
+    seam_steers: int = 2            # ... in this many gradient steps with the real history, at the boundary
     skate_weight: float = 1.0       # light: stronger, it buys less sliding by not walking at all
     floor_weight: float = 40.0
 
@@ -140,16 +142,21 @@ class ControlTargets:
 class SegmentCosts:
     """The total cost of a decoded segment (normalised features) given its history and targets."""
 
-    def __init__(self, stats, hist_n: torch.Tensor, targets: ControlTargets, cfg: ControlConfig) -> None:
+    def __init__(self, stats, hist_n: torch.Tensor, targets: ControlTargets | None, cfg: ControlConfig) -> None:
+        """targets None: only the seam (the first frame continuing the history's joint velocities)."""
         self.stats, self.t, self.cfg = stats, targets, cfg
-        last = stats.denormalize(hist_n[0, -1])
-        self.before_joints = feature_joints(last)
-        self.before_xy = last[ROOT_T][:2]
+        hist = stats.denormalize(hist_n[0])
+        self.before_joints = feature_joints(hist[-1])
+        self.before_xy = hist[-1, ROOT_T][:2]
+        # where the joints would be next at the history's own velocity
+        self.continued = 2.0 * self.before_joints - feature_joints(hist[-2]) if hist.shape[0] >= 2 else None
 
     def __call__(self, feat_n: torch.Tensor) -> torch.Tensor:
         feat = self.stats.denormalize(feat_n[0])
         joints = feature_joints(feat)
         t, cfg = self.t, self.cfg
+        if self.t is None:    # the boundary's own steering: continuity with the real history only
+            return cfg.seam_weight * (joints[0] - self.continued).pow(2).sum()
         cost = foot_cost(joints, self.before_joints, cfg)
         if t.partner is not None and t.alpha_hhi > 0.0:
             partner = cfg.partner_weight * partner_cost(joints, t.partner, cfg.partner_margin)

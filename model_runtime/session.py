@@ -430,6 +430,12 @@ class ReactionSession:
         """Decode a finished latent with the real history in its own canonical frame."""
         rot, trans = canonical_frame(feature_joints(self._hist_world[0]))
         hist_n = self.model.stats.normalize(to_canonical(self._hist_world, rot, trans)).unsqueeze(0)
+        cc = self._control_config
+        if self._control and cc.seam_steers and self.cfg.history >= 2:
+            # the latent was made for a predicted history; join it to the real one without a jump
+            steer = LatentSteer(self.model, hist_n, SegmentCosts(self.model.stats, hist_n, None, cc), cc)
+            for _ in range(cc.seam_steers):
+                z0 = steer(z0)
         return {"rot": rot, "trans": trans, "hist_n": hist_n, "z0": z0,
                 "future": self.model.decode(hist_n, z0), "f": 0, "emitted": hist_n[0]}
 

@@ -127,6 +127,19 @@ def test_steering_lowers_the_segment_cost(tiny_model):
     assert after < before
 
 
+def test_seam_cost_pulls_the_first_frame_onto_the_history_velocity(tiny_model):
+    m = tiny_model
+    hist = torch.zeros(1, 2, m.cfg.feature_dim)
+    hist[0, 1, 144:210] = 0.1             # joints moved 0.1 m along every axis between the two history frames
+    costs = SegmentCosts(m.stats, m.stats.normalize(hist), None, CFG)
+    feat = torch.zeros(1, m.cfg.future, m.cfg.feature_dim)
+    continued = feat.clone()
+    continued[0, 0, 144:210] = 0.2
+    jumped = feat.clone()
+    jumped[0, 0, 144:210] = 0.5
+    assert float(costs(m.stats.normalize(continued))) < 1e-6 < float(costs(m.stats.normalize(jumped)))
+
+
 def test_steps_per_frame_spreads_every_step_and_evens_out_steered_ones():
     assert steps_per_frame(10, 8, 0) in ((1, 1, 1, 1, 1, 1, 2, 2), (0, 1, 1, 1, 1, 2, 2, 2))
     split = steps_per_frame(18, 8, 12)          # 6 plain steps, then 12 steered ones (2.5 plain steps each)
