@@ -75,9 +75,11 @@ class _Signals:
 
     def __init__(self) -> None:
         self.received: int | None = None
+        self.count = 0          # a second Ctrl-C can mean "now"
 
     def __call__(self, signum: int, _frame) -> None:
         self.received = signum
+        self.count += 1
 
     def requested(self) -> bool:
         return self.received is not None
@@ -102,17 +104,27 @@ def _stop_on_signals() -> Iterator[_Signals]:
             signal.signal(s, h)
 
 
+def partial_files(out: str, pid: int) -> tuple[str, str]:
+    """The temporary file the process `pid` saves `out` under, and Blender's backup of it."""
+    tmp = os.path.join(os.path.dirname(out), f".{os.path.basename(out)}.{pid}.partial.blend")
+    return tmp, tmp + "1"
+
+
+def remove_partial_files(out: str, pid: int) -> None:
+    for leftover in partial_files(out, pid):
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(leftover)
+
+
 def _save_output(bpy, out: str, sig: _Signals) -> None:
     """Save a copy to `out` through a temporary file: `out` appears only complete, never after a signal."""
-    tmp = os.path.join(os.path.dirname(out), f".{os.path.basename(out)}.{os.getpid()}.partial.blend")
+    tmp = partial_files(out, os.getpid())[0]
     try:
         bpy.ops.wm.save_as_mainfile(filepath=tmp, copy=True)
         if not sig.requested():
             os.replace(tmp, out)
     finally:
-        for leftover in (tmp, tmp + "1"):
-            with contextlib.suppress(FileNotFoundError):
-                os.remove(leftover)
+        remove_partial_files(out, os.getpid())
 
 
 def cli_main(argv: Sequence[str]) -> int:
