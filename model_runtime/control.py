@@ -38,9 +38,9 @@ class ControlConfig:
     step_size: float = 3.0          # latent units per steered step at full gradient
     max_gradient: float = 1.0       # gradient norms above this are scaled down to it (bounded step length)
     negligible_cost: float = 1e-4   # a segment costing less is left as it is
-    partner_margin: float = 0.35    # m: joint-to-joint distance the partner cost keeps
-    partner_weight: float = 40.0
-    face_weight: float = 2.0        # turning toward a partner standing within face_radius
+    partner_margin: float = 0.5     # m: joint-to-joint distance the partner cost keeps
+    partner_weight: float = 200.0
+    face_weight: float = 10.0       # turning toward a partner standing within face_radius
     face_radius: float = 2.5        # m
     look_ahead: int = 8             # partner frames past a segment's end its last pose must keep clear of
     still_speed: float = 0.3        # m/s: a partner slower than this counts as standing
@@ -53,8 +53,10 @@ class ControlConfig:
     goal_face_distance: float = 1.0  # m
     rest_radius: float = 0.6        # m: within this of the goal the segment is asked to stand on it
     rest_weight: float = 20.0
-    seam_weight: float = 100.0      # the first frame continues the history's joint velocities ...
-    seam_steers: int = 2            # ... in this many gradient steps with the real history, at the boundary
+    seam_weight: float = 100.0      # joints accelerate no more across a segment's start than within it ...
+    seam_steers: int = 4            # ... in this many gradient steps with the real history, at the boundary,
+    keep_weight: float = 3.0        # the rest of the segment stays as the model made it
+    seam_step_size: float = 1.0     # each this long at most (longer ones made a standing body glide away)
     skate_weight: float = 1.0       # light: stronger, it buys less sliding by not walking at all
     floor_weight: float = 40.0
 
@@ -116,6 +118,17 @@ def goal_cost(pelvis: torch.Tensor, start_xy: torch.Tensor, goal_xy: torch.Tenso
     return cost
 
 
+def seam_cost(joints: torch.Tensor, before: torch.Tensor, earlier: torch.Tensor) -> torch.Tensor:
+    """Joint accelerations where a segment meets its history: at the last history frame and the first new one.
+
+    Accelerations rather than "continue the history's velocity": that one made any drift of a standing body
+    carry on into every next segment and grow (measured: 28-50 m per minute of "a person stands").
+    """
+    at_history = joints[0] - 2.0 * before + earlier
+    at_first = joints[1] - 2.0 * joints[0] + before
+    return at_history.pow(2).sum() + at_first.pow(2).sum()
+
+
 def foot_cost(joints: torch.Tensor, before: torch.Tensor, cfg: ControlConfig) -> torch.Tensor:
     """Toes sliding while near the floor, and any joint below it. joints (T, 22, 3); before (22, 3)."""
     toes = torch.cat((before[TOES, :].unsqueeze(0), joints[:, TOES, :]), 0)      # (T + 1, 2, 3)
@@ -142,22 +155,25 @@ class ControlTargets:
 class SegmentCosts:
     """The total cost of a decoded segment (normalised features) given its history and targets."""
 
-    def __init__(self, stats, hist_n: torch.Tensor, targets: ControlTargets | None, cfg: ControlConfig) -> None:
-        """targets None: only the seam (the first frame continuing the history's joint velocities)."""
+    def __init__(self, stats, hist_n: torch.Tensor, targets: ControlTargets, cfg: ControlConfig,
+                 keep: torch.Tensor | None = None) -> None:
+        """With `keep`, the joints (F, 22, 3) a finished latent decodes to with the real history at a segment's
+        start, the seam is costed too, and the segment after its first frames is kept close to `keep`."""
+        self.keep = keep
         self.stats, self.t, self.cfg = stats, targets, cfg
         hist = stats.denormalize(hist_n[0])
         self.before_joints = feature_joints(hist[-1])
         self.before_xy = hist[-1, ROOT_T][:2]
-        # where the joints would be next at the history's own velocity
-        self.continued = 2.0 * self.before_joints - feature_joints(hist[-2]) if hist.shape[0] >= 2 else None
+        self.earlier_joints = feature_joints(hist[-2]) if hist.shape[0] >= 2 else None
 
     def __call__(self, feat_n: torch.Tensor) -> torch.Tensor:
         feat = self.stats.denormalize(feat_n[0])
         joints = feature_joints(feat)
         t, cfg = self.t, self.cfg
-        if self.t is None:    # the boundary's own steering: continuity with the real history only
-            return cfg.seam_weight * (joints[0] - self.continued).pow(2).sum()
         cost = foot_cost(joints, self.before_joints, cfg)
+        if self.keep is not None and self.earlier_joints is not None:
+            cost = cost + cfg.seam_weight * seam_cost(joints, self.before_joints, self.earlier_joints)
+            cost = cost + cfg.keep_weight * (joints[2:] - self.keep[2:]).pow(2).sum()
         if t.partner is not None and t.alpha_hhi > 0.0:
             partner = cfg.partner_weight * partner_cost(joints, t.partner, cfg.partner_margin)
             if t.partner_still:
@@ -181,8 +197,10 @@ class SegmentCosts:
 class LatentSteer:
     """Moves a predicted clean latent down the gradient of a segment's costs (one decoder pass each way)."""
 
-    def __init__(self, model, hist_n: torch.Tensor, costs: SegmentCosts, cfg: ControlConfig) -> None:
+    def __init__(self, model, hist_n: torch.Tensor, costs: SegmentCosts, cfg: ControlConfig,
+                 step_size: float | None = None) -> None:
         self.model, self.costs, self.cfg, self.hist = model, costs, cfg, hist_n
+        self.step_size = cfg.step_size if step_size is None else step_size
 
     def __call__(self, x0: torch.Tensor) -> torch.Tensor:
         with torch.enable_grad():
@@ -194,7 +212,7 @@ class LatentSteer:
         norm = float(grad.norm())
         if not np.isfinite(norm) or norm == 0.0:
             return x0
-        scale = self.cfg.step_size * min(1.0, self.cfg.max_gradient / norm)
+        scale = self.step_size * min(1.0, self.cfg.max_gradient / norm)
         return (x0 - scale * grad).detach()
 
 

@@ -160,11 +160,11 @@ BOUNDARY_COST = 1.0
 
 
 @lru_cache(maxsize=64)
-def steps_per_frame(steps: int, frames: int, steered: int) -> tuple[int, ...]:
+def steps_per_frame(steps: int, frames: int, steered: int, boundary: float = BOUNDARY_COST) -> tuple[int, ...]:
     """Denoising steps per frame of a segment, spreading the job's cost evenly over its frames.
 
     Steps run in order and the last `steered` of them cost STEERED_STEP_COST each; frame 0 starts with
-    BOUNDARY_COST already spent. The split minimises the sum of squared frame costs (so both the typical and
+    `boundary` already spent (its decode, contexts and seam steering). The split minimises the sum of squared frame costs (so both the typical and
     the worst frame stay low), by dynamic programming over (steps done, frame). Sums to `steps`.
     """
     if steps * steps * frames > 2_000_000:     # research configs with very many steps: an even split
@@ -179,7 +179,7 @@ def steps_per_frame(steps: int, frames: int, steered: int) -> tuple[int, ...]:
     best = [[inf] * (steps + 1) for _ in range(frames)]
     choice = [[0] * (steps + 1) for _ in range(frames)]
     for i in range(steps + 1):
-        best[0][i] = (BOUNDARY_COST + prefix[i]) ** 2
+        best[0][i] = (boundary + prefix[i]) ** 2
     for f in range(1, frames):
         for i in range(steps + 1):
             for j in range(i + 1):
@@ -396,7 +396,9 @@ class ReactionSession:
         f = seg["f"]
         if f == 0:
             job = self._job
-            seg["steps_at"] = steps_per_frame(job.total_steps, self.cfg.future, job.steered_steps + job.final_steers)
+            seam = self._control_config.seam_steers if self._control else 0
+            seg["steps_at"] = steps_per_frame(job.total_steps, self.cfg.future, job.steered_steps + job.final_steers,
+                                              BOUNDARY_COST + seam * STEERED_STEP_COST)
         if self._fwsr and f >= 1:
             # the latest H emitted frames, already canonical and normalised in this segment's frame
             recent = seg["emitted"][-self.cfg.history:].unsqueeze(0)
@@ -432,8 +434,10 @@ class ReactionSession:
         hist_n = self.model.stats.normalize(to_canonical(self._hist_world, rot, trans)).unsqueeze(0)
         cc = self._control_config
         if self._control and cc.seam_steers and self.cfg.history >= 2:
-            # the latent was made for a predicted history; join it to the real one without a jump
-            steer = LatentSteer(self.model, hist_n, SegmentCosts(self.model.stats, hist_n, None, cc), cc)
+            # the latent was made for a predicted history: join it to the real one without a jump, still
+            # under the same costs (its first frame plays now)
+            made = feature_joints(self.model.stats.denormalize(self.model.decode(hist_n, z0)[0]))
+            steer = self._steer(hist_n, rot, trans, lead=0, keep=made, step_size=cc.seam_step_size)
             for _ in range(cc.seam_steers):
                 z0 = steer(z0)
         return {"rot": rot, "trans": trans, "hist_n": hist_n, "z0": z0,
@@ -450,7 +454,8 @@ class ReactionSession:
         return DiffusionJob(self.model, hist_n, self._text_emb, contexts, self._alpha, self._guidance, self._gen,
                             steer=steer, steered_steps=cc.steered_steps, final_steers=cc.final_steers)
 
-    def _steer(self, hist_n: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor, lead: int) -> LatentSteer:
+    def _steer(self, hist_n: torch.Tensor, rot: torch.Tensor, trans: torch.Tensor, lead: int,
+               keep: torch.Tensor | None = None, step_size: float | None = None) -> LatentSteer:
         """Test-time control of one job: its costs' targets in the job's canonical frame."""
         cc = self._control_config
         targets = ControlTargets(alpha_hhi=self._alpha["hhi"], alpha_hsi=self._alpha["hsi"])
@@ -463,7 +468,8 @@ class ReactionSession:
                 targets.field, targets.to_world = self._distance_field(), (rot, trans)
             if self._goal is not None:
                 targets.goal_xy = world_points_to_canonical(torch.as_tensor(self._goal).view(1, 3), rot, trans)[0, :2]
-        return LatentSteer(self.model, hist_n, SegmentCosts(self.model.stats, hist_n, targets, cc), cc)
+        return LatentSteer(self.model, hist_n, SegmentCosts(self.model.stats, hist_n, targets, cc, keep=keep), cc,
+                           step_size=step_size)
 
     def _distance_field(self) -> DistanceField:
         """The scene's distance field, built once per grid (a grid never changes once built)."""

@@ -2,12 +2,14 @@
 lowers the cost, and the alpha sliders switch the interaction costs off."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
 
 from model_runtime.control import (ControlConfig, ControlTargets, LatentSteer, SegmentCosts, facing_cost,
-                                   foot_cost, goal_cost, partner_cost, partner_future, scene_cost)
+                                   foot_cost, goal_cost, partner_cost, partner_future, scene_cost, seam_cost)
 from model_runtime.distance_field import DistanceField, signed_distance
 from model_runtime.features import canonical_frame, feature_joints, to_canonical
 from model_runtime.fixtures import approaching_partner, box_scene
@@ -127,17 +129,19 @@ def test_steering_lowers_the_segment_cost(tiny_model):
     assert after < before
 
 
-def test_seam_cost_pulls_the_first_frame_onto_the_history_velocity(tiny_model):
+def test_seam_cost_is_zero_for_a_steady_motion_and_grows_with_a_jump(tiny_model):
     m = tiny_model
     hist = torch.zeros(1, 2, m.cfg.feature_dim)
     hist[0, 1, 144:210] = 0.1             # joints moved 0.1 m along every axis between the two history frames
-    costs = SegmentCosts(m.stats, m.stats.normalize(hist), None, CFG)
-    feat = torch.zeros(1, m.cfg.future, m.cfg.feature_dim)
-    continued = feat.clone()
-    continued[0, 0, 144:210] = 0.2
-    jumped = feat.clone()
-    jumped[0, 0, 144:210] = 0.5
-    assert float(costs(m.stats.normalize(continued))) < 1e-6 < float(costs(m.stats.normalize(jumped)))
+    costs = SegmentCosts(m.stats, m.stats.normalize(hist), ControlTargets(), replace(CFG, skate_weight=0.0, keep_weight=0.0),
+                         keep=torch.zeros(m.cfg.future, 22, 3))
+    steady = torch.zeros(1, m.cfg.future, m.cfg.feature_dim)
+    steady[0, :, 144:210] = 0.1 * torch.arange(2, 2 + m.cfg.future).view(-1, 1)
+    jumped = steady.clone()
+    jumped[0, 0, 144:210] += 0.3
+    assert float(costs(m.stats.normalize(steady))) < 1e-6 < float(costs(m.stats.normalize(jumped)))
+    g = grad_of(lambda j: seam_cost(j, torch.full((22, 3), 0.1), torch.zeros(22, 3)), feature_joints(jumped[0]))
+    assert -g[0].sum() < 0                # the jumped first frame is pulled back toward the steady path
 
 
 def test_steps_per_frame_spreads_every_step_and_evens_out_steered_ones():
