@@ -113,7 +113,7 @@ def cleanup_modal(context: bpy.types.Context, timer, clear_status: bool = True) 
 
 
 class REMOGEN_OT_live_stop(bpy.types.Operator):
-    """Stop live and put the ego back in its rest pose"""
+    """Stop live and put the ego and the target back as they were before Live"""
     bl_idname = "remogen.live_stop"
     bl_label = "Stop"
 
@@ -178,7 +178,7 @@ class ModalBake:
 
 
 class REMOGEN_OT_bake(bpy.types.Operator):
-    """Generate the frame range for the seed and key it into a new action on the ego (Esc cancels)"""
+    """Generate the frame range for the seed and key it into a new action on each posed armature (Esc cancels)"""
     bl_idname = "remogen.bake"
     bl_label = "Bake"
     bl_options = {'REGISTER', 'UNDO'}

@@ -277,3 +277,29 @@ def test_panel_shows_the_target_and_its_bone_map(fresh):
     _draw(REMOGEN_PT_target_bone_map, fresh)
     REMOGEN_UL_bone_map.draw_item(None, fresh, FakeLayout([]), st, st.target_bone_map[0], 0, st,
                                   "target_bone_map_index")
+
+
+def test_command_line_bake_of_a_target_only_file_makes_no_ego(fresh, tmp_path, tiny_model_file):
+    """A file whose target is posed alone bakes from the command line without an ego being added to it."""
+    import scenes
+    from remogen_blender.cli import cli_main
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scenes.target_scene(fresh, scenes.make_target("Character"), mode='TARGET', frames=(1, 12))
+    src, out = tmp_path / "scene.blend", tmp_path / "out.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(src))
+    assert cli_main(["bake", "--blend", str(src), "--model", str(tiny_model_file), "--output", str(out)]) == 0
+    bpy.ops.wm.open_mainfile(filepath=str(out))
+    assert [ob.name for ob in bpy.data.objects if ob.type == 'ARMATURE'] == ["Character", "Partner"]
+    assert bpy.data.objects["Character"].animation_data.action.name.startswith("ReMoGen_Character")
+
+
+def test_target_deleted_during_live_stops_it_in_one_line(fresh):
+    from remogen_blender import live
+    d = _target_scene(frames=(1, 24))
+    assert bpy.ops.remogen.live_start() == {'FINISHED'}
+    fresh.scene.frame_set(3)
+    bpy.data.objects.remove(d["target"])
+    fresh.scene.frame_set(5)
+    assert not live.is_running()
+    msg = live.message()
+    assert msg.startswith("Live stopped:") and "Target" in msg and "\n" not in msg, msg
