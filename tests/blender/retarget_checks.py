@@ -7,9 +7,9 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from model_runtime.skeleton import JOINT_NAMES, forward_kinematics_np, rest_joints
+import torch
+from model_runtime.skeleton import JOINT_NAMES, forward_kinematics_np, quat_to_matrix, rest_joints
 from remogen_blender.rig.ego import LEAF_TAIL, TAIL_CHILD
-from remogen_blender.rig.rotations import quat_to_matrix
 
 LEGS = (("left_hip", "left_knee", "left_ankle"), ("right_hip", "right_knee", "right_ankle"))
 INDEX = {n: i for i, n in enumerate(JOINT_NAMES)}
@@ -27,7 +27,7 @@ class Worst:
 def ego_joints_and_rotations(driver, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(T, 22, 3) world joints and (T, 22, 3, 3) world rotations of the ego poses at model times."""
     poses = driver.poses_at(times)
-    rots = quat_to_matrix(poses.local_rotations)
+    rots = quat_to_matrix(torch.as_tensor(poses.local_rotations, dtype=torch.float64)).numpy()
     out_j, out_g = [], []
     for r, p in zip(rots, poses.pelvis):
         j, g = forward_kinematics_np(r, p, world_rotations=True)
@@ -63,7 +63,6 @@ def measure(scene, job, target, mapping: dict[str, str], ego_start: np.ndarray, 
     frames = np.arange(job.f0, job.f1 + 1)
     times = (frames - job.f0) / job.fps
     joints, glob = ego_joints_and_rotations(job.driver, times)
-    dg = bpy.context.evaluated_depsgraph_get()
     worst_pelvis = 0.0
     by_joint = dict.fromkeys(mapping, 0.0)
     toes = []

@@ -303,3 +303,36 @@ def test_target_deleted_during_live_stops_it_in_one_line(fresh):
     assert not live.is_running()
     msg = live.message()
     assert msg.startswith("Live stopped:") and "Target" in msg and "\n" not in msg, msg
+
+
+def test_leg_ik_maths():
+    """The analytic solve puts a reachable ankle exactly on its goal; the foot roll turns about the toe; the
+    pelvis move lets a stretched leg reach while a straight other leg keeps its length."""
+    from remogen_blender.rig import leg_ik
+    rng = np.random.default_rng(0)
+    n = 200
+    hip = rng.normal(size=(n, 3))
+    knee = hip + 0.4 * leg_ik.unit(rng.normal(size=(n, 3)) + (0.0, 0.0, -2.0))
+    ankle = knee + 0.42 * leg_ik.unit(rng.normal(size=(n, 3)) + (0.0, 0.0, -2.0))
+    goal = hip + leg_ik.unit(rng.normal(size=(n, 3))) * rng.uniform(0.1, 0.8, size=(n, 1))
+    turn_hip, turn_knee = leg_ik.solve_leg(hip, knee, ankle, goal, np.tile((1.0, 0.0, 0.0), (n, 1)))
+    new_knee = hip + (turn_hip @ (knee - hip)[..., None])[..., 0]
+    new_ankle = new_knee + (turn_knee @ (ankle - knee)[..., None])[..., 0]
+    assert np.abs(new_ankle - goal).max() < 1e-9
+    assert np.allclose(np.linalg.norm(new_knee - hip, axis=-1), 0.4)             # bones keep their lengths
+    # a toe 2 mm out of reach: the foot rolls about the toe until the ankle is in reach
+    toe = np.array([[0.0, -0.15, 0.0]])
+    ank = np.array([[0.0, 0.0, 0.05]])
+    hips = np.array([[0.0, 0.3, 0.05 + 0.80]])
+    reach = np.linalg.norm(hips - ank) - 0.002
+    roll = leg_ik.roll_about_toe(ank, toe, hips, reach)
+    rolled = toe + (roll[0] @ (ank - toe)[0])
+    assert np.linalg.norm(hips[0] - rolled) == pytest.approx(reach, abs=1e-9)
+    assert np.linalg.norm(rolled - toe[0]) == pytest.approx(np.linalg.norm(ank - toe), abs=1e-12)
+    # two planted legs: A 2 cm beyond reach, B straight (at its reach): the pelvis moves, B keeps its length
+    hips2 = np.array([[[0.1, 0.0, 0.9], [-0.1, 0.0, 0.9]]])
+    goals = np.array([[[0.1, 0.35, 0.9 - 0.80], [-0.1, -0.2, 0.1]]])
+    reach2 = np.array([np.linalg.norm(goals[0, 0] - hips2[0, 0]) - 0.02, np.linalg.norm(goals[0, 1] - hips2[0, 1])])
+    shift = leg_ik._pelvis_shift(hips2, goals, reach2)
+    after = np.linalg.norm(goals - (hips2 + shift[:, None]), axis=-1)[0]
+    assert after[0] == pytest.approx(reach2[0], abs=1e-3) and after[1] == pytest.approx(reach2[1], abs=1e-3)
