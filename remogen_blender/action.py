@@ -49,6 +49,36 @@ def write_channel(fcurves: Any, group: Any, data_path: str, index: int, frames: 
     return fc
 
 
+def pose_channels(bone_names: list[str], locations: np.ndarray, rotations: np.ndarray, root: str
+                  ) -> list[tuple[str, str, np.ndarray]]:
+    """(bone, property, (T, n) values): rotation_quaternion of each bone, location of the root bone.
+
+    locations: (T, B, 3); rotations: (T, B, 4), bones in `bone_names` order.
+    """
+    out = []
+    for b, bone in enumerate(bone_names):
+        if bone == root:
+            out.append((bone, "location", locations[:, b]))
+        out.append((bone, "rotation_quaternion", rotations[:, b]))
+    return out
+
+
+def write_bone_keys(ob: bpy.types.Object, name: str, frames: np.ndarray,
+                    channels: list[tuple[str, str, np.ndarray]]) -> tuple[bpy.types.Action, str | None]:
+    """Keys for every frame into a new action on `ob`: channels are (bone, pose-bone property, (T, n)
+    values), grouped by bone. Returns (the action, the name of the action it replaced or None)."""
+    act, fcurves, groups, replaced = new_action(ob, name)
+    made = {}
+    for bone, prop, values in channels:
+        if bone not in made:
+            made[bone] = groups.new(bone)
+        g = made[bone]
+        path = ob.pose.bones[bone].path_from_id(prop)
+        for i in range(values.shape[1]):
+            write_channel(fcurves, g, path, i, frames, values[:, i])
+    return act, replaced
+
+
 def write_pose_keys(ob: bpy.types.Object, name: str, frames: np.ndarray, bone_names: list[str],
                     locations: np.ndarray, rotations: np.ndarray, root: str
                     ) -> tuple[bpy.types.Action, str | None]:
@@ -56,15 +86,4 @@ def write_pose_keys(ob: bpy.types.Object, name: str, frames: np.ndarray, bone_na
 
     frames: (T,); locations: (T, B, 3); rotations: (T, B, 4), bones in `bone_names` order.
     """
-    act, fcurves, groups, replaced = new_action(ob, name)
-    for b, bone in enumerate(bone_names):
-        g = groups.new(bone)
-        pb = ob.pose.bones[bone]
-        if bone == root:
-            path = pb.path_from_id("location")
-            for i in range(3):
-                write_channel(fcurves, g, path, i, frames, locations[:, b, i])
-        path = pb.path_from_id("rotation_quaternion")
-        for i in range(4):
-            write_channel(fcurves, g, path, i, frames, rotations[:, b, i])
-    return act, replaced
+    return write_bone_keys(ob, name, frames, pose_channels(bone_names, locations, rotations, root))

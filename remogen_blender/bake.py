@@ -1,4 +1,5 @@
-"""Bake: generate a frame range deterministically for the seed and key it into a new action on the ego.
+"""Bake: generate a frame range deterministically for the seed and key it into a new action on the ego, and
+on the target rig when one is set (each posed armature gets its own new action; their old ones are kept).
 
 The session is stepped once per model frame (0.1 s) with the partner as Live sees it during playback: at
 the scene frame where Live first needs that model frame (the frame at its time at 10 fps, up to 0.1 s
@@ -13,7 +14,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import bpy
@@ -34,11 +35,13 @@ class BakeCancelled(UserError):
 
 @dataclass
 class BakeResult:
-    action: bpy.types.Action
+    action: bpy.types.Action     # the first keyed armature's new action (the ego's, or the target's alone)
     frames: int                  # scene frames keyed
     model_frames: int            # model frames generated
     seconds: float               # generation + keying (model loading excluded)
-    replaced: str | None         # the action that was on the ego before (kept, never edited)
+    replaced: str | None         # the action that was on that armature before (kept, never edited)
+    keyed: list[tuple[str, bpy.types.Action, str | None]] = field(default_factory=list)
+    # every keyed armature: (object name, new action, the action it replaced)
 
     @property
     def model_fps(self) -> float:
@@ -72,9 +75,9 @@ class BakeJob:
         self.done = 0                # model frames generated so far
         self._frame = f0             # the scene frame the next model frame reads the partner at
         self._frame_set: int | None = None
-        self.ego = self.driver.writer.object
+        self.posed = self.driver.posed_objects
         self._saved_frame = (scene.frame_current, scene.frame_subframe)
-        self._saved_pose = PoseSnapshot.take(self.ego)
+        self._saved_poses = [PoseSnapshot.take(ob) for ob in self.posed]
         self._t_start = time.perf_counter()   # generation and keying: loading the model is not the bake's speed
         self._closed = False
 
@@ -115,31 +118,50 @@ class BakeJob:
             return
         self._closed = True
         self.scene.frame_set(self._saved_frame[0], subframe=self._saved_frame[1])
-        self._saved_pose.restore(self.ego)
+        self._restore_poses()
+
+    def _restore_poses(self) -> None:
+        for ob, pose in zip(self.posed, self._saved_poses):
+            pose.restore(ob)
 
     def finish(self) -> BakeResult:
-        """Key every scene frame into a new action on the ego (the only change the bake makes)."""
+        """Key every scene frame into a new action on each posed armature (the only change the bake makes)."""
         if not self.finished_generating:
             raise RuntimeError("BakeJob.finish() before every model frame was generated")
+        driver = self.driver
         try:
             frames = np.arange(self.f0, self.f1 + 1, dtype=np.float64)
-            poses = self.driver.poses_at((frames - self.f0) / self.fps)
-            locs, rots = self.driver.writer.pose_channels(poses.pelvis, poses.local_rotations)
-            rots = api().continuous_quaternions(rots)
-            if not (np.isfinite(locs).all() and np.isfinite(rots).all()):
-                raise UserError(f"Ego '{self.ego.name}': the baked poses are not finite and were not keyed; "
-                                "check the ego's transform")
+            poses = driver.poses_at((frames - self.f0) / self.fps)
+            channels = []                     # per posed armature: [(bone, property, (T, n) values)]
+            if driver.writer is not None:
+                locs, rots = driver.writer.pose_channels(poses.pelvis, poses.local_rotations)
+                rots = api().continuous_quaternions(rots)
+                _check_finite("Ego", driver.writer.name, locs, rots)
+                channels.append(action_mod.pose_channels(list(api().JOINT_NAMES), locs, rots, root="pelvis"))
+            if driver.target is not None:
+                locs, rots = driver.target_channels(poses)
+                _check_finite("Target", driver.target.name, locs, rots)
+                channels.append(driver.target.key_channels(locs, rots))
         except BaseException:
             self.cancel()
             raise
         self.scene.frame_set(self._saved_frame[0], subframe=self._saved_frame[1])
-        st = self.scene.remogen
-        act, replaced = action_mod.write_pose_keys(
-            self.ego, self.name or f"ReMoGen_{self.ego.name}_seed{st.seed}", frames, list(api().JOINT_NAMES),
-            locs, rots, root="pelvis")
-        self._saved_pose.restore(self.ego)   # the new action drives the pose from here on
+        seed = self.scene.remogen.seed
+        keyed = []
+        for k, (ob, chans) in enumerate(zip(self.posed, channels)):
+            name = (self.name if k == 0 else f"{self.name}_{ob.name}") if self.name else f"ReMoGen_{ob.name}_seed{seed}"
+            act, replaced = action_mod.write_bone_keys(ob, name, frames, chans)
+            keyed.append((ob.name, act, replaced))
+        self._restore_poses()   # the new actions drive the poses from here on
         self._closed = True
-        return BakeResult(act, len(frames), self.total, time.perf_counter() - self._t_start, replaced)
+        return BakeResult(keyed[0][1], len(frames), self.total, time.perf_counter() - self._t_start, keyed[0][2],
+                          keyed)
+
+
+def _check_finite(what: str, name: str, locs: np.ndarray, rots: np.ndarray) -> None:
+    if not (np.isfinite(locs).all() and np.isfinite(rots).all()):
+        raise UserError(f"{what} '{name}': the baked poses are not finite and were not keyed; "
+                        f"check the {what.lower()}'s transform")
 
 
 def bake(scene: bpy.types.Scene, frame_start: int | None = None, frame_end: int | None = None,

@@ -41,7 +41,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--partner", help="partner armature object (default: the one set in the file)")
     b.add_argument("--scene-collection", help="collection of scene meshes (default: the one set in the file)")
     b.add_argument("--goal", help="goal object (default: the one set in the file)")
-    b.add_argument("--ego", help="ego armature (default: the file's; created when there is none)")
+    b.add_argument("--ego", help="ego armature (default: the file's; created when there is none, unless the "
+                                 "file's target rig is posed alone)")
     b.add_argument("--text", help="intent text")
     b.add_argument("--alpha-hhi", type=float, help="partner influence 0..1")
     b.add_argument("--alpha-hsi", type=float, help="scene influence 0..1")
@@ -170,7 +171,7 @@ def _bake(args: argparse.Namespace, sig: _Signals) -> int:
     try:
         _apply(args, scene, st)
         model = get_model(path=args.model or None, threads=args.threads)
-        if st.ego is None:
+        if st.ego is None and not (st.target is not None and st.target_mode == 'TARGET'):   # target alone: no ego
             st.ego = rig.create_ego(bpy.context, location=tuple(scene.cursor.location))
         f0, f1 = args.frames if args.frames else (scene.frame_start, scene.frame_end)
         t0 = time.perf_counter()

@@ -2,6 +2,10 @@
 
     python -m remogen_blender.demo --out demo_out            # in a Python with the bpy module
     python -m remogen_blender.demo --out demo_out --model my.pt
+    python -m remogen_blender.demo --out demo_out --target mixamo   # a character of your own instead of the ego
+
+`--target mixamo` puts a Mixamo-named character where the ego would stand: other proportions (legs 1.15 times
+the ego's), an A-pose rest; the bake retargets the ego's motion onto it (the ego itself is not made).
 
 The partner clip (the runtime's WALK_CLIP, model_runtime/data/clips/cmu_05_01_walk.npz) is CMU trial 05_01
 retargeted to the SMPL-X body at 10 fps; `python -m remogen_blender.demo make-clip BVH` rebuilds it. CMU data: "The data used in this project was
@@ -21,6 +25,16 @@ import numpy as np
 from ._runtime import api
 
 CLIP = api().WALK_CLIP
+# Mixamo's bone names (without the "mixamorig:" prefix an import adds) for the 22 SMPL-X joints.
+MIXAMO_NAMES = {
+    "pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2", "neck": "Neck", "head": "Head",
+    "left_hip": "LeftUpLeg", "left_knee": "LeftLeg", "left_ankle": "LeftFoot", "left_foot": "LeftToeBase",
+    "left_collar": "LeftShoulder", "left_shoulder": "LeftArm", "left_elbow": "LeftForeArm", "left_wrist": "LeftHand",
+}
+MIXAMO_NAMES.update({"right_" + k[5:]: v.replace("Left", "Right") for k, v in list(MIXAMO_NAMES.items())
+                     if k.startswith("left_")})
+TARGET_LEG_SCALE = 1.15     # the demo character's legs against the ego's
+TARGET_A_POSE_DEG = 45.0    # its arms in the rest pose, below the T-pose
 CREDIT = ("CMU Graphics Lab Motion Capture Database, trial 05_01 (walk). The data used in this project was "
           "obtained from mocap.cs.cmu.edu. The database was created with funding from NSF EIA-0196217.")
 
@@ -36,6 +50,39 @@ def make_clip(bvh: str, out: Path = CLIP) -> Path:
     return out
 
 
+def humanoid_heads(scale: float = 1.0, leg_scale: float = 1.0, a_pose_deg: float = 0.0) -> np.ndarray:
+    """(22, 3) SMPL-X-ordered rest joints of a standing humanoid, soles at z = 0: the SMPL-X body with legs
+    (hip to toe) `leg_scale` times as long and arms lowered `a_pose_deg` from the T-pose, scaled by `scale`."""
+    rt = api()
+    rest = rt.rest_joints_np()
+    names, parents = rt.JOINT_NAMES, rt.PARENTS
+    feet = [i for i, n in enumerate(names) if n.endswith(("ankle", "foot"))]
+    sole = rt.standing_pelvis_height() - (rest[0, 2] - rest[feet, 2].min())   # sole below the foot joints
+    heads = np.zeros_like(rest)
+    for i in range(1, len(names)):
+        off = rest[i] - rest[parents[i]]
+        if names[i].endswith(("knee", "ankle", "foot")):
+            off = off * leg_scale
+        if names[i].endswith(("elbow", "wrist")):
+            a = math.radians(a_pose_deg) * (1.0 if names[i].startswith("left") else -1.0)
+            off = np.array(((math.cos(a), 0.0, math.sin(a)), (0.0, 1.0, 0.0), (-math.sin(a), 0.0, math.cos(a)))) @ off
+        heads[i] = heads[parents[i]] + off
+    heads[:, 2] += sole - heads[feet, 2].min()
+    return heads * scale
+
+
+def make_mixamo_character(context, name: str = "Character", location=(0.0, 0.0, 0.0), yaw: float = 0.0):
+    """A Mixamo-named armature with the demo's proportions and A-pose rest, and a capsule body."""
+    from . import rig
+    from .rig.body import link_body, proxy_body
+    joints = list(api().JOINT_NAMES)
+    bones = ["mixamorig:" + MIXAMO_NAMES[j] for j in joints]
+    ob = rig.build_armature(context, name, humanoid_heads(1.0, TARGET_LEG_SCALE, TARGET_A_POSE_DEG), bones,
+                            location=location, yaw=yaw)
+    link_body(ob, name + "_Body", *proxy_body(bones, ob, radius_names=joints))
+    return ob
+
+
 # The strip's camera looks from behind the ego, turned toward -X (the goal's side; the table stands at +X
 # and further away), from high enough that the table cannot hide the ego's legs.
 VIEW_AZIMUTH = math.radians(20.0)
@@ -43,8 +90,9 @@ VIEW_ELEVATION = math.radians(32.0)
 FRAME_MARGIN = 0.06            # share of the picture left free at each edge
 
 
-def build_scene(context, fps: int = 24):
-    """The demo scene in the current (empty) file; returns (scene, number of frames)."""
+def build_scene(context, fps: int = 24, target: str | None = None):
+    """The demo scene in the current (empty) file; returns (scene, number of frames). target "mixamo": a
+    Mixamo-named character stands where the ego would, set as the target rig ("Target only")."""
     import bpy
     from . import action, rig
     from ._runtime import api
@@ -65,7 +113,11 @@ def build_scene(context, fps: int = 24):
                            loc, api().continuous_quaternions(rot), root="pelvis")
 
     end_y = float(pelvis[-1, 1])                 # the walk heads for -Y; the ego waits beyond its end
-    ego = rig.create_ego(context, name="Ego", location=(0.0, end_y - 1.1, 0.0), yaw=math.pi)
+    if target == "mixamo":
+        ego = None
+        character = make_mixamo_character(context, location=(0.0, end_y - 1.1, 0.0), yaw=math.pi)
+    else:
+        ego = rig.create_ego(context, name="Ego", location=(0.0, end_y - 1.1, 0.0), yaw=math.pi)
     props = bpy.data.collections.new("Props")
     scene.collection.children.link(props)
     me = bpy.data.meshes.new("Table")
@@ -84,9 +136,13 @@ def build_scene(context, fps: int = 24):
 
     st = scene.remogen
     st.partner, st.ego, st.scene_collection, st.goal = partner, ego, props, goal
+    if target == "mixamo":
+        st.target, st.target_mode = character, 'TARGET'
     st.text = "walk to the person and wave"
     # looks for the strip render
-    for ob, colour in ((partner.children[0], (0.25, 0.45, 0.9, 1.0)), (ego.children[0], (0.95, 0.55, 0.2, 1.0)),
+    reacting = ego if ego is not None else character
+    for ob, colour in ((partner.children[0], (0.25, 0.45, 0.9, 1.0)),
+                       (reacting.children[0], (0.95, 0.55, 0.2, 1.0)),
                        (table, (0.6, 0.6, 0.6, 1.0)), (marker, (0.2, 0.75, 0.3, 1.0))):
         ob.color = colour
     floor_me = bpy.data.meshes.new("Floor")       # looks only: not in Props, so not an obstacle
@@ -120,9 +176,9 @@ def _goal_marker(goal):
 
 
 def strip_subjects(scene) -> list:
-    """What every frame of the strip must show: both bodies, the table and the goal marker."""
+    """What every frame of the strip must show: the bodies (ego or target, partner), the table and the goal marker."""
     st = scene.remogen
-    bodies = [c for ob in (st.ego, st.partner) for c in ob.children if c.type == 'MESH']
+    bodies = [c for ob in (st.ego, st.target, st.partner) if ob is not None for c in ob.children if c.type == 'MESH']
     return bodies + [scene.objects["Table"], scene.objects["GoalMarker"]]
 
 
@@ -221,7 +277,8 @@ def render_strip(scene, frames: list[int], path: Path, size: int = 240) -> Path:
     return path
 
 
-def run(out_dir: Path, model_path: str | None, strip_frames: int = 6, size: int = 240) -> int:
+def run(out_dir: Path, model_path: str | None, strip_frames: int = 6, size: int = 240,
+        target: str | None = None) -> int:
     import bpy
     from . import register, unregister
     from ._runtime import api, get_model, remogen_errors, runtime
@@ -242,7 +299,7 @@ def run(out_dir: Path, model_path: str | None, strip_frames: int = 6, size: int 
             model, note = runtime().load_model(config="default"), "untrained default-size model"
             import torch
             torch.set_num_threads(1)
-        scene, n = build_scene(bpy.context)
+        scene, n = build_scene(bpy.context, target=target)
         t0 = time.perf_counter()
         res = bake(scene, 1, n, model=model)
         shots = [int(round(v)) for v in np.linspace(1, n, strip_frames)]
@@ -250,8 +307,10 @@ def run(out_dir: Path, model_path: str | None, strip_frames: int = 6, size: int 
         scene.frame_set(1)
         blend = out_dir / "demo.blend"
         bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+        onto = ", ".join(f"'{ob}'" for ob, _act, _old in res.keyed)
         print(f"remogen demo: baked {res.frames} frames ({res.model_frames} model frames, {res.model_fps:.0f}/s) "
-              f"with the {note} in {time.perf_counter() - t0:.1f} s; saved {blend} and {strip} (frames {shots})")
+              f"onto {onto} with the {note} in {time.perf_counter() - t0:.1f} s; saved {blend} and {strip} "
+              f"(frames {shots})")
         return 0
     except remogen_errors() as exc:
         print(f"remogen demo: error: {exc}", file=sys.stderr)
@@ -268,13 +327,16 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--model", help="model file (default: the shipped weights)")
     ap.add_argument("--shots", type=int, default=6, help="frames in the PNG strip")
     ap.add_argument("--size", type=int, default=240, help="pixel size of each frame in the strip")
+    ap.add_argument("--target", choices=["mixamo"],
+                    help="retarget onto a character of your own instead of the ego: a Mixamo-named rig with "
+                         "longer legs and an A-pose rest")
     args = ap.parse_args(argv)
     if args.command == "make-clip":
         if not args.bvh:
             ap.error("make-clip needs the BVH path")
         print(make_clip(args.bvh))
         return 0
-    return run(Path(args.out).resolve(), args.model, args.shots, args.size)
+    return run(Path(args.out).resolve(), args.model, args.shots, args.size, args.target)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""What Live and the bake borrow from the ego and give back: its pose and its own action.
+"""What Live and the bake borrow from the ego (and the target rig) and give back: its pose and its own action.
 
 Live poses the ego directly, so the ego's action must be taken off it while Live runs (it would
 overwrite the pose on every frame). `HeldAction` keeps that action safe meanwhile (a fake user, so no
@@ -15,24 +15,29 @@ import numpy as np
 
 @dataclass
 class PoseSnapshot:
-    """The pose bones' quaternions and locations, flat, in pose-bone order."""
+    """The pose bones' rotations (in every rotation mode) and locations, flat, in pose-bone order."""
     rotations: np.ndarray
     locations: np.ndarray
+    eulers: np.ndarray
+    axis_angles: np.ndarray
+
+    _CHANNELS = (("rotations", "rotation_quaternion", 4), ("locations", "location", 3),
+                 ("eulers", "rotation_euler", 3), ("axis_angles", "rotation_axis_angle", 4))
 
     @classmethod
     def take(cls, ob: bpy.types.Object) -> "PoseSnapshot":
         n = len(ob.pose.bones)
-        q = np.empty(n * 4, dtype=np.float32)
-        loc = np.empty(n * 3, dtype=np.float32)
-        ob.pose.bones.foreach_get("rotation_quaternion", q)
-        ob.pose.bones.foreach_get("location", loc)
-        return cls(q, loc)
+        values = {}
+        for field_name, prop, size in cls._CHANNELS:
+            values[field_name] = np.empty(n * size, dtype=np.float32)
+            ob.pose.bones.foreach_get(prop, values[field_name])
+        return cls(**values)
 
     def restore(self, ob: bpy.types.Object) -> None:
         """Put the pose back; nothing happens when the object was deleted meanwhile."""
         try:
-            ob.pose.bones.foreach_set("rotation_quaternion", self.rotations)
-            ob.pose.bones.foreach_set("location", self.locations)
+            for field_name, prop, _size in self._CHANNELS:
+                ob.pose.bones.foreach_set(prop, getattr(self, field_name))
             ob.update_tag()
         except ReferenceError:
             pass

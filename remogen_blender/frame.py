@@ -1,8 +1,13 @@
-"""The one per-frame function: read the partner -> step the session -> write the ego.
+"""The one per-frame function: read the partner -> step the session -> write the ego and/or the target.
 
 `FrameDriver.update()` is called by the live modal operator (timer), the frame-change handler and the bake
 loop alike. Scene time (any fps, any frame_start) maps to model time, one model frame per 0.1 s; frames
 between two model frames are shown by interpolation (lerp of the pelvis, slerp of the rotations).
+
+A target rig (the user's own armature, rig/target.py) is posed from the same poses, beside the ego or
+instead of it. While the ego reports a foot planted (EgoFrame.contacts) the target's toe stays where it was
+at the model frame that contact began; after lift-off the remaining correction fades out by the next model
+frame. Those points are computed per model frame, so live and a bake pin the same points.
 """
 from __future__ import annotations
 
@@ -40,9 +45,13 @@ def scene_time(scene: bpy.types.Scene, frame: float | None = None) -> float:
 
 @dataclass
 class Pose:
-    """An ego pose in world space: pelvis position and SMPL-X local quaternions (w first)."""
-    pelvis: np.ndarray            # (3,)
-    local_rotations: np.ndarray   # (22, 4)
+    """Ego poses in world space: pelvis position and SMPL-X local quaternions (w first), one pose (no leading
+    axis) or a batch (T, ...), with the feet's contacts."""
+    pelvis: np.ndarray            # (3,) or (T, 3)
+    local_rotations: np.ndarray   # (22, 4) or (T, 22, 4)
+    frame: np.ndarray             # () or (T,) int: the model frame at or just before each time
+    planted: np.ndarray           # (2,) or (T, 2): 1 while a foot is planted, fading to 0 after lift-off, else 0
+    contact_start: np.ndarray     # (2,) or (T, 2) int: model frame where the contact at `frame` began, -1 none
 
 
 def _settings(st: Any) -> tuple:
@@ -52,22 +61,26 @@ def _settings(st: Any) -> tuple:
 
 
 class FrameDriver:
-    """A running ReMoGen session bound to one scene's partner, scene collection, goal and ego."""
+    """A running ReMoGen session bound to one scene's partner, scene collection, goal, ego and target."""
 
     def __init__(self, scene: bpy.types.Scene, model: Any = None, keep_frames: int | None = 600) -> None:
         st = scene.remogen
         if torch_error():                       # the most basic problem first
             raise UserError(torch_error())
-        if st.ego is None:
-            raise UserError("No ego armature: press 'Create Ego' in the ReMoGen panel")
+        only_target = st.target is not None and st.target_mode == 'TARGET'
+        if st.ego is None and not only_target:
+            raise UserError("No ego armature: press 'Create Ego' in the ReMoGen panel (or pick a target rig)")
         if st.partner is None:
             raise UserError("Pick a partner armature in the ReMoGen panel")
-        if st.partner == st.ego:
+        if st.partner == st.ego and not only_target:
             raise UserError("The partner and the ego are the same armature; pick another partner")
-        _check_in_scene(scene, st.ego, "Ego")
-        _check_finite_transform(st.ego, "Ego")
         self.scene_name = scene.name
-        self.writer = rig.EgoWriter(st.ego)
+        self.writer: rig.EgoWriter | None = None      # None: "Target only", the ego is left alone
+        if not only_target:
+            _check_in_scene(scene, st.ego, "Ego")
+            _check_finite_transform(st.ego, "Ego")
+            self.writer = rig.EgoWriter(st.ego)
+        self.target = self._make_target(scene, st) if st.target is not None else None
         self.reader = self._make_reader(scene, st)
         self.model = model if model is not None else get_model()
         self.dt = 1.0 / float(getattr(self.model, "fps", 1.0 / MODEL_DT))   # seconds per model frame
@@ -75,25 +88,43 @@ class FrameDriver:
         self.session = rt.ReactionSession(self.model, text=st.text, seed=st.seed, alpha=_alpha(st),
                                           guidance=_guidance(st), fwsr=st.use_fwsr, scene=None,
                                           cleanup=st.use_foot_lock, control=st.use_control)
-        root, yaw = self.writer.start_pose()
+        root, yaw = (self.writer or self.target).start_pose()
         self.session.reset(root_position=root, yaw=yaw)
+        if self.target is not None:
+            self.target.follow(root, yaw)
         self._applied = _settings(st)
         self.scene_cache = SceneCache()
         self.frames: deque = deque(maxlen=keep_frames)   # EgoFrames, newest last
+        self.contact_starts: deque = deque(maxlen=keep_frames)   # per frame: (left, right) contact_start
+        self._toes: dict[int, np.ndarray] = {}            # model frame -> target's (2, 3) world toes there
         self.first_index = 0                              # model index of frames[0]
         self.anchor = scene_time(scene)                   # scene time of model frame 0 (live)
         self.last_time = 0.0
         self.step_ms = 0.0        # the last model step: read partner, scene, session.step
         self.update_ms = 0.0      # the last update(): steps + interpolation + writing the pose
 
+    @property
+    def posed_objects(self) -> list[bpy.types.Object]:
+        """The armatures this driver poses: the ego, the target, or both."""
+        return [w.object for w in (self.writer, self.target) if w is not None]
+
     # ------------------------------------------------------------------ inputs
     @staticmethod
     def _make_reader(scene: bpy.types.Scene, st: Any) -> rig.PartnerReader:
         _check_in_scene(scene, st.partner, "Partner")
         _check_finite_transform(st.partner, "Partner")
-        if st.bone_map_rig != st.partner.name or len(st.bone_map) == 0:
-            rig.fill_bone_map(st, st.partner)
-        return rig.PartnerReader(st.partner, rig.bone_map_dict(st))
+        return rig.PartnerReader(st.partner, rig.ensure_bone_map(st, st.partner))
+
+    @staticmethod
+    def _make_target(scene: bpy.types.Scene, st: Any) -> rig.TargetWriter:
+        target = rig.check_armature(st.target, "Target")
+        if target == st.partner:
+            raise UserError("The target and the partner are the same armature; pick your character as the target")
+        if target == st.ego:
+            raise UserError("The target is the ego armature; pick your own character's armature as the target")
+        _check_in_scene(scene, target, "Target")
+        _check_finite_transform(target, "Target")
+        return rig.TargetWriter(target, rig.ensure_bone_map(st, target, rig.TARGET))
 
     def _sync_settings(self, st: Any) -> None:
         """Pass slider, text and toggle changes to the session before the next model frame.
@@ -149,14 +180,18 @@ class FrameDriver:
         t0 = time.perf_counter()
         st = scene.remogen
         self._sync_settings(st)
-        if not _in_scene(scene, self.writer.object):
-            raise UserError(f"Ego '{self.writer.name}' was deleted or is no longer in the scene; "
-                            "pick or create an ego and start again")
+        for what, w in (("Ego", self.writer), ("Target", self.target)):
+            if w is not None and not _in_scene(scene, w.object):
+                raise UserError(f"{what} '{w.name}' was deleted or is no longer in the scene; "
+                                f"pick {'or create an ego' if what == 'Ego' else 'a target'} and start again")
         partner = self._partner(scene, st, depsgraph)
         goal = self._goal(st, depsgraph)
         self.session.scene = self.scene_cache.grid(st.scene_collection, depsgraph)
         frame = self._model_step(partner, goal)
         self.frames.append(frame)
+        prev = self.contact_starts[-1] if self.contact_starts else (-1, -1)
+        self.contact_starts.append(tuple((prev[s] if prev[s] >= 0 else frame.index) if frame.contacts[s] else -1
+                                         for s in range(2)))
         self.first_index = frame.index - len(self.frames) + 1
         self.step_ms = (time.perf_counter() - t0) * 1e3
         return frame
@@ -186,12 +221,14 @@ class FrameDriver:
     def pose_at(self, model_time: float) -> Pose:
         """The pose at one model time already generated (live and frame-change; see poses_at)."""
         p = self.poses_at(np.array([model_time]))
-        return Pose(p.pelvis[0], p.local_rotations[0])
+        return Pose(p.pelvis[0], p.local_rotations[0], p.frame[0], p.planted[0], p.contact_start[0])
 
     def poses_at(self, model_times: np.ndarray) -> Pose:
         """Poses at model times already generated, clamped to the frames kept: pelvis (T, 3), local_rotations
         (T, 22, 4). Between two model frames the pelvis is blended linearly and the rotations by slerp; live,
-        frame-change and bake all go through here, so a bake's keys are what live shows."""
+        frame-change and bake all go through here, so a bake's keys are what live shows. A foot is planted
+        between two model frames that both have it planted, and fades out between its last planted model
+        frame and the next."""
         x = np.asarray(model_times, dtype=np.float64) / self.dt
         k0 = np.floor(x + _EPS).astype(np.int64)
         a = np.clip(x - k0, 0.0, 1.0)
@@ -204,7 +241,11 @@ class FrameDriver:
         i0, i1 = where[:len(lo)], where[len(lo):]
         p = (1.0 - a)[:, None] * pel[i0] + a[:, None] * pel[i1]
         q = _RT.qslerp(rot[i0], rot[i1], a[:, None, None])
-        return Pose(p, q)
+        con = np.stack([self.frames[i].contacts for i in need]).astype(np.float64)
+        began = np.array([self.contact_starts[i] for i in need], dtype=np.int64)
+        index = np.array([self.frames[i].index for i in need], dtype=np.int64)
+        planted = con[i0] * (1.0 - a[:, None] * (1.0 - con[i1]))
+        return Pose(p, q, index[i0], planted, began[i0])
 
     def last_needed(self, model_time: float) -> int:
         """The index of the last model frame needed to show `model_time` (the one at or just after it)."""
@@ -247,14 +288,53 @@ class FrameDriver:
             self._write(self.pose_at(self.last_time))
 
     def _write(self, pose: Pose) -> None:
-        loc, rot = self.writer.pose_channels(pose.pelvis, pose.local_rotations)
+        if self.writer is not None:
+            loc, rot = self.writer.pose_channels(pose.pelvis, pose.local_rotations)
+            self._check_channels("Ego", self.writer.name, loc, rot)
+            self.writer.write_channels(loc, rot)
+        if self.target is not None:
+            batch = Pose(pose.pelvis[None], pose.local_rotations[None], np.atleast_1d(pose.frame),
+                         pose.planted[None], pose.contact_start[None])
+            loc, rot = self.target_channels(batch)
+            self._check_channels("Target", self.target.name, loc, rot)
+            self.target.write_channels(loc[0], rot[0])
+
+    def _check_channels(self, what: str, name: str, loc: np.ndarray, rot: np.ndarray) -> None:
         if not (np.isfinite(loc).all() and np.isfinite(rot).all()):   # never a NaN on the rig
-            raise UserError(f"Ego '{self.writer.name}': its pose at model frame {self.latest_index} is not "
-                            "finite and was not written; check the ego's transform")
-        self.writer.write_channels(loc, rot)
+            raise UserError(f"{what} '{name}': its pose at model frame {self.latest_index} is not "
+                            f"finite and was not written; check the {what.lower()}'s transform")
+
+    def target_channels(self, poses: Pose) -> tuple[np.ndarray, np.ndarray]:
+        """The target's channels for a batch of poses (rig/target.py), planted toes pinned when Plant Feet is on."""
+        if not self.session.cleanup:
+            return self.target.pose_channels(poses.pelvis, poses.local_rotations)
+        pinned = poses.planted >= 1.0
+        fading = (poses.planted > 0.0) & ~pinned
+        began = np.where(poses.planted > 0.0, poses.contact_start, -1)
+        at = np.where(fading, poses.frame[:, None], -1)
+        pins = np.where(pinned[..., None], self._free_toes(began), np.nan)
+        shifts = np.where(fading[..., None], poses.planted[..., None] * (self._free_toes(began) - self._free_toes(at)),
+                          np.nan)
+        return self.target.pose_channels(poses.pelvis, poses.local_rotations, pins, shifts)
+
+    def _free_toes(self, frames: np.ndarray) -> np.ndarray:
+        """(T, 2, 3) the target's toes (left, right) in the world at model frames (T, 2) before any is pinned,
+        NaN where the frame is -1; each model frame's are computed once."""
+        keys = np.unique(frames[frames >= 0])
+        new = [int(k) for k in keys if int(k) not in self._toes]
+        if new:
+            p = self.poses_at(np.array(new, dtype=np.float64) * self.dt)
+            for k, toes in zip(new, self.target.toes(p.pelvis, p.local_rotations)):
+                self._toes[k] = toes
+        if len(keys) == 0:
+            return np.full(frames.shape + (3,), np.nan)
+        table = np.stack([self._toes[int(k)] for k in keys])               # (K, 2, 3)
+        picked = table[np.searchsorted(keys, np.maximum(frames, keys[0])), np.arange(2)]
+        return np.where((frames >= 0)[..., None], picked, np.nan)
 
     def restore_rest(self) -> None:
-        self.writer.write_rest()
+        if self.writer is not None:
+            self.writer.write_rest()
 
 
 def _in_scene(scene: bpy.types.Scene, ob: bpy.types.Object) -> bool:

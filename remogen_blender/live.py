@@ -3,8 +3,9 @@
 This is plain Python state so it works without a window: `remogen.live_start` run from a script or a
 background process follows `scene.frame_set()` through a frame_change_post handler; started from the UI
 (invoke) the modal operator adds a timer that also keeps the ego living while the timeline stands still.
-Any error, Stop, Esc, or loading another file ends it and puts the ego back as it was before Live (its
-pose and its own action). A save while Live runs writes the ego as it was before Live, too.
+Any error, Stop, Esc, or loading another file ends it and puts the ego and the target rig back as they
+were before Live (their poses and their own actions). A save while Live runs writes them as they were
+before Live, too.
 """
 from __future__ import annotations
 
@@ -25,9 +26,17 @@ class LiveState:
         self.scene_name = scene.name
         self.last_scene_time = scene_time(scene)
         self.last_wall = time.perf_counter()
-        ego = driver.writer.object
-        self.pose_before = PoseSnapshot.take(ego)
-        self.action_before = HeldAction(ego)
+        # every armature Live poses (the ego, the target): its pose and action before Live
+        self.held = [(ob, PoseSnapshot.take(ob), HeldAction(ob)) for ob in driver.posed_objects]
+
+    def take_actions_off(self) -> None:
+        for ob, _pose, action in self.held:
+            action.take_off(ob)
+
+    def put_back(self) -> None:
+        for ob, pose, action in self.held:
+            pose.restore(ob)
+            action.put_back(ob)
 
 
 _state: LiveState | None = None
@@ -61,8 +70,8 @@ def start(context: bpy.types.Context) -> LiveState:
     scene = context.scene
     driver = FrameDriver(scene)
     st = LiveState(driver, scene)
-    # An action on the ego would overwrite the live pose on every frame; it comes back on stop.
-    st.action_before.take_off(driver.writer.object)
+    # An action on a posed armature would overwrite the live pose on every frame; it comes back on stop.
+    st.take_actions_off()
     _state = st
     _add_handlers()
     try:
@@ -75,19 +84,13 @@ def start(context: bpy.types.Context) -> LiveState:
 
 
 def stop(reason: str = "Stopped") -> None:
-    """End live: handlers off, the ego back as it was before Live (pose and action)."""
+    """End live: handlers off, the ego and the target back as they were before Live (poses and actions)."""
     global _state, _message
     st, _state = _state, None
     _remove_handlers()
     _message = reason
     if st is not None:
-        _put_ego_back(st)
-
-
-def _put_ego_back(st: LiveState) -> None:
-    ego = st.driver.writer.object
-    st.pose_before.restore(ego)
-    st.action_before.put_back(ego)
+        st.put_back()
 
 
 def tick(context: bpy.types.Context) -> None:
@@ -115,7 +118,7 @@ def _guarded(fn) -> None:
     try:
         fn()
     except ReferenceError:
-        stop("Live stopped: the partner or the ego was deleted")
+        stop("Live stopped: the partner, the ego or the target was deleted")
         print(f"ReMoGen: {_message}")
     except Exception as exc:  # noqa: BLE001 - nothing may leave a half-running session behind
         stop(f"Live stopped: {error_line(exc)}")
@@ -148,9 +151,9 @@ def _on_load(*_args: Any) -> None:
 
 
 def _on_save_pre(*_args: Any) -> None:
-    """The file gets the ego as it was before Live: its own action assigned, its pose."""
+    """The file gets the ego and the target as they were before Live: their own actions assigned, their poses."""
     if _state is not None:
-        _put_ego_back(_state)
+        _state.put_back()
 
 
 def _on_save_post(*_args: Any) -> None:
@@ -160,7 +163,7 @@ def _on_save_post(*_args: Any) -> None:
 
 
 def _resume_after_save() -> None:
-    _state.action_before.take_off(_state.driver.writer.object)
+    _state.take_actions_off()
     _state.driver.show_latest()
 
 

@@ -1,6 +1,6 @@
 """Operators: create the ego, live start/stop, bake, and bone-map editing. Each reports one line on failure."""
 import bpy
-from bpy.props import IntProperty
+from bpy.props import BoolProperty, IntProperty
 
 from . import live, rig
 from ._runtime import UserError, error_line, remogen_errors
@@ -113,7 +113,7 @@ def cleanup_modal(context: bpy.types.Context, timer, clear_status: bool = True) 
 
 
 class REMOGEN_OT_live_stop(bpy.types.Operator):
-    """Stop live and put the ego back in its rest pose"""
+    """Stop live and put the ego and the target back as they were before Live"""
     bl_idname = "remogen.live_stop"
     bl_label = "Stop"
 
@@ -178,7 +178,7 @@ class ModalBake:
 
 
 class REMOGEN_OT_bake(bpy.types.Operator):
-    """Generate the frame range for the seed and key it into a new action on the ego (Esc cancels)"""
+    """Generate the frame range for the seed and key it into a new action on each posed armature (Esc cancels)"""
     bl_idname = "remogen.bake"
     bl_label = "Bake"
     bl_options = {'REGISTER', 'UNDO'}
@@ -237,52 +237,69 @@ class REMOGEN_OT_bake(bpy.types.Operator):
             self._run.cancel(context)
 
     def _report(self, res) -> set[str]:
-        kept = f"; previous action '{res.replaced}' kept" if res.replaced else ""
+        into = " and ".join(f"'{act.name}'" + (f" (previous action '{old}' kept)" if old else "")
+                            for _ob, act, old in res.keyed)
         self.report({'INFO'}, f"Baked {res.frames} frames ({res.model_frames} model frames, {res.model_fps:.0f}/s) "
-                              f"into '{res.action.name}'{kept}")
+                              f"into {into}")
         return {'FINISHED'}
 
 
+_TARGET_MAP_HELP = "The target rig's bone map instead of the partner's"
+
+
+def _map_slot(st, target: bool):
+    """(the rig whose map is edited, where the map lives) for the partner or the target."""
+    return (st.target, rig.TARGET) if target else (st.partner, rig.PARTNER)
+
+
 class REMOGEN_OT_guess_bone_map(bpy.types.Operator):
-    """Detect the partner's bone map from its bone names (SMPL-X, Mixamo, BVH/CMU, Rigify, Bandai, ...)"""
+    """Detect the rig's bone map from its bone names (SMPL-X, Mixamo, BVH/CMU, Rigify, Bandai, ...)"""
     bl_idname = "remogen.guess_bone_map"
     bl_label = "Detect Bone Map"
     bl_options = {'REGISTER', 'UNDO'}
 
+    target: BoolProperty(name="Target", default=False, description=_TARGET_MAP_HELP)
+
     def execute(self, context: bpy.types.Context) -> set[str]:
         st = context.scene.remogen
-        if st.partner is None:
-            self.report({'ERROR'}, "Pick a partner armature first")
+        ob, slot = _map_slot(st, self.target)
+        if ob is None:
+            self.report({'ERROR'}, f"Pick a {slot.what.lower()} armature first")
             return {'CANCELLED'}
         try:
-            missing = rig.fill_bone_map(st, st.partner)
+            missing = rig.fill_bone_map(st, ob, slot=slot)
         except remogen_errors() as exc:
             return _fail(self, exc)
         if missing:
-            self.report({'WARNING'}, f"Partner '{st.partner.name}': no bones found for {', '.join(missing[:6])}"
+            self.report({'WARNING'}, f"{slot.what} '{ob.name}': no bones found for {', '.join(missing[:6])}"
                                      f"{' ...' if len(missing) > 6 else ''}; map them by hand")
         else:
-            self.report({'INFO'}, f"Bone map: {st.bone_map_family}, all 22 joints mapped")
+            self.report({'INFO'}, f"Bone map: {getattr(st, slot.family)}, all 22 joints mapped")
         return {'FINISHED'}
 
 
 class REMOGEN_OT_bone_from_active(bpy.types.Operator):
-    """Map the selected SMPL-X joint to the partner's active bone"""
+    """Map the selected SMPL-X joint to the rig's active bone"""
     bl_idname = "remogen.bone_from_active"
     bl_label = "Use Active Bone"
     bl_options = {'REGISTER', 'UNDO'}
 
+    target: BoolProperty(name="Target", default=False, description=_TARGET_MAP_HELP)
+
     def execute(self, context: bpy.types.Context) -> set[str]:
         st = context.scene.remogen
-        if st.partner is None or not (0 <= st.bone_map_index < len(st.bone_map)):
-            self.report({'ERROR'}, "Pick a partner and a bone-map row first")
+        ob, slot = _map_slot(st, self.target)
+        rows = getattr(st, slot.rows)
+        index = getattr(st, slot.rows + "_index")
+        if ob is None or not (0 <= index < len(rows)):
+            self.report({'ERROR'}, f"Pick a {slot.what.lower()} and a bone-map row first")
             return {'CANCELLED'}
-        bone = st.partner.data.bones.active
+        bone = ob.data.bones.active
         if bone is None:
-            self.report({'ERROR'}, f"Partner '{st.partner.name}' has no active bone; select one in Pose Mode")
+            self.report({'ERROR'}, f"{slot.what} '{ob.name}' has no active bone; select one in Pose Mode")
             return {'CANCELLED'}
-        st.bone_map[st.bone_map_index].bone = bone.name
-        st.bone_map_rig = st.partner.name
+        rows[index].bone = bone.name
+        setattr(st, slot.rig, ob.name)
         return {'FINISHED'}
 
 

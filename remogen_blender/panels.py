@@ -3,13 +3,13 @@ from __future__ import annotations
 
 import bpy
 
-from . import _runtime, deps, live
+from . import _runtime, deps, live, rig
 
 
-def _bone_ok(partner: bpy.types.Object | None, spec: str) -> bool:
-    if partner is None or not spec:
+def _bone_ok(ob: bpy.types.Object | None, spec: str) -> bool:
+    if ob is None or not spec:
         return False
-    bones = partner.data.bones
+    bones = ob.data.bones
     if spec.startswith("lerp:"):
         parts = spec.split(":")
         return len(parts) == 4 and parts[1] in bones and parts[2] in bones
@@ -18,11 +18,25 @@ def _bone_ok(partner: bpy.types.Object | None, spec: str) -> bool:
     return spec in bones
 
 
+def _map_summary(layout: bpy.types.UILayout, st, ob: bpy.types.Object, slot) -> None:
+    """"Bone map: mixamo (22/22)" with a Detect button; red when joints are unmapped."""
+    rows = getattr(st, slot.rows)
+    made_for = getattr(st, slot.rig) == ob.name
+    mapped = sum(1 for it in rows if _bone_ok(ob, it.bone))
+    row = layout.row()
+    row.alert = mapped < 22 and made_for
+    family = getattr(st, slot.family) or "custom"
+    row.label(text=f"Bone map: {family} ({mapped}/22)" if made_for else "Bone map: not detected yet",
+              icon='BONE_DATA')
+    row.operator("remogen.guess_bone_map", text="", icon='FILE_REFRESH').target = slot is rig.TARGET
+
+
 class REMOGEN_UL_bone_map(bpy.types.UIList):
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
-        partner = context.scene.remogen.partner
+        st = context.scene.remogen
+        ob = st.target if active_propname.startswith("target_") else st.partner
         row = layout.row(align=True)
-        row.alert = not _bone_ok(partner, item.bone)
+        row.alert = not _bone_ok(ob, item.bone)
         split = row.split(factor=0.42)
         split.label(text=item.joint)
         split.prop(item, "bone", text="", emboss=True)
@@ -51,20 +65,18 @@ class REMOGEN_PT_main(bpy.types.Panel):
         col = layout.column()
         col.prop(st, "partner")
         if st.partner is not None:
-            mapped = sum(1 for it in st.bone_map if _bone_ok(st.partner, it.bone))
-            row = col.row()
-            row.alert = mapped < 22 and st.bone_map_rig == st.partner.name
-            label = (f"Bone map: {st.bone_map_family or 'custom'} ({mapped}/22)"
-                     if st.bone_map_rig == st.partner.name else "Bone map: not detected yet")
-            row.label(text=label, icon='BONE_DATA')
-            row.operator("remogen.guess_bone_map", text="", icon='FILE_REFRESH')
+            _map_summary(col, st, st.partner, rig.PARTNER)
         col.prop(st, "scene_collection")
         col.prop(st, "goal")
         row = col.row(align=True)
         row.prop(st, "ego")
         row.operator("remogen.create_ego", text="", icon='ADD')
-        if st.ego is None:
+        if st.ego is None and st.target is None:
             col.operator("remogen.create_ego", icon='ARMATURE_DATA')
+        col.prop(st, "target")
+        if st.target is not None:
+            col.prop(st, "target_mode", text="")
+            _map_summary(col, st, st.target, rig.TARGET)
 
         col = layout.column(align=True)
         col.prop(st, "text", text="")
@@ -92,30 +104,47 @@ class REMOGEN_PT_main(bpy.types.Panel):
             layout.label(text=line, icon='ERROR' if line.startswith("Live stopped:") else 'INFO')
 
 
-class REMOGEN_PT_bone_map(bpy.types.Panel):
-    bl_label = "Bone Map"
-    bl_idname = "REMOGEN_PT_bone_map"
+def _draw_bone_map(layout: bpy.types.UILayout, st, slot) -> None:
+    rows = slot.rows
+    layout.template_list("REMOGEN_UL_bone_map", rows, st, rows, st, rows + "_index", rows=8)
+    row = layout.row(align=True)
+    row.operator("remogen.guess_bone_map").target = slot is rig.TARGET
+    row.operator("remogen.bone_from_active").target = slot is rig.TARGET
+    layout.label(text="Entries: a bone, lerp:A:B:0.5 or end:A", icon='INFO')
+
+
+class _BoneMapPanel:
+    """A rig's bone map: 22 SMPL-X joints -> bone names, editable (a collapsed sub-panel)."""
     bl_space_type = 'VIEW_3D'
     bl_region_type = 'UI'
     bl_category = "ReMoGen"
     bl_parent_id = "REMOGEN_PT_main"
     bl_options = {'DEFAULT_CLOSED'}
+    slot = rig.PARTNER
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        return context.scene.remogen.partner is not None
+        return getattr(context.scene.remogen, cls.slot.what.lower()) is not None
+
+
+class REMOGEN_PT_bone_map(_BoneMapPanel, bpy.types.Panel):
+    bl_label = "Bone Map"
+    bl_idname = "REMOGEN_PT_bone_map"
 
     def draw(self, context: bpy.types.Context) -> None:
-        st = context.scene.remogen
-        layout = self.layout
-        layout.template_list("REMOGEN_UL_bone_map", "", st, "bone_map", st, "bone_map_index", rows=8)
-        row = layout.row(align=True)
-        row.operator("remogen.guess_bone_map")
-        row.operator("remogen.bone_from_active")
-        layout.label(text="Entries: a bone, lerp:A:B:0.5 or end:A", icon='INFO')
+        _draw_bone_map(self.layout, context.scene.remogen, rig.PARTNER)
 
 
-CLASSES = (REMOGEN_UL_bone_map, REMOGEN_PT_main, REMOGEN_PT_bone_map)
+class REMOGEN_PT_target_bone_map(_BoneMapPanel, bpy.types.Panel):
+    bl_label = "Target Bone Map"
+    bl_idname = "REMOGEN_PT_target_bone_map"
+    slot = rig.TARGET
+
+    def draw(self, context: bpy.types.Context) -> None:
+        _draw_bone_map(self.layout, context.scene.remogen, rig.TARGET)
+
+
+CLASSES = (REMOGEN_UL_bone_map, REMOGEN_PT_main, REMOGEN_PT_bone_map, REMOGEN_PT_target_bone_map)
 
 
 def register() -> None:

@@ -1,7 +1,7 @@
 """`scene.remogen`: the settings an animator edits (names are the public contract) and the bone map."""
 import bpy
-from bpy.props import (BoolProperty, CollectionProperty, FloatProperty, IntProperty, PointerProperty,
-                       StringProperty)
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty,
+                       PointerProperty, StringProperty)
 
 from ._runtime import api
 
@@ -16,6 +16,10 @@ def _is_armature(_self, ob: bpy.types.Object) -> bool:
     return ob.type == 'ARMATURE'
 
 
+def _is_target_candidate(self: "RemogenSettings", ob: bpy.types.Object) -> bool:
+    return ob.type == 'ARMATURE' and ob != self.partner and ob != self.ego
+
+
 def _partner_changed(self: "RemogenSettings", _context: bpy.types.Context) -> None:
     # A new partner gets an automatic bone map; a failure leaves the old one and the panel says why.
     from . import rig
@@ -23,10 +27,16 @@ def _partner_changed(self: "RemogenSettings", _context: bpy.types.Context) -> No
         rig.fill_bone_map(self, self.partner, quiet=True)
 
 
+def _target_changed(self: "RemogenSettings", _context: bpy.types.Context) -> None:
+    from . import rig
+    if self.target is not None and self.target_bone_map_rig != self.target.name:
+        rig.fill_bone_map(self, self.target, quiet=True, slot=rig.TARGET)
+
+
 class RemogenBoneMapItem(bpy.types.PropertyGroup):
-    """One SMPL-X joint and the partner bone (or "lerp:A:B:t", "end:A") that gives its position."""
+    """One SMPL-X joint and the rig's bone (or "lerp:A:B:t", "end:A") that gives its position."""
     joint: StringProperty(name="Joint", description="SMPL-X body joint")
-    bone: StringProperty(name="Bone", description="Partner bone name, 'lerp:A:B:t' (a point between two "
+    bone: StringProperty(name="Bone", description="The rig's bone name, 'lerp:A:B:t' (a point between two "
                          "bones' heads) or 'end:A' (the tail of bone A)")
 
 
@@ -42,6 +52,17 @@ class RemogenSettings(bpy.types.PropertyGroup):
     ego: PointerProperty(
         name="Ego", type=bpy.types.Object, poll=_is_armature,
         description="The generated SMPL-X character (press Create Ego)")
+    target: PointerProperty(
+        name="Target", type=bpy.types.Object, poll=_is_target_candidate, update=_target_changed,
+        description="Your own humanoid armature: ReMoGen poses it from the ego's motion (retargeted), "
+                    "instead of the ego or beside it")
+    target_mode: EnumProperty(
+        name="Pose", default='TARGET',
+        items=(('TARGET', "Target only", "Pose only the target; the motion starts where the target stands "
+                "and no ego is needed"),
+               ('BOTH', "Target and ego", "Pose the ego and the target; the target does the ego's motion "
+                "from its own place and facing")),
+        description="Which armatures Live and Bake pose when a target is set")
     text: StringProperty(
         name="Intent", default="walk to the person and wave", description="What the ego should do")
     alpha_hhi: FloatProperty(
@@ -73,6 +94,11 @@ class RemogenSettings(bpy.types.PropertyGroup):
     bone_map_rig: StringProperty(
         name="Mapped rig", default="", description="The partner object the bone map was made for")
     show_bone_map: BoolProperty(name="Show bone map", default=False)
+    target_bone_map: CollectionProperty(type=RemogenBoneMapItem)
+    target_bone_map_index: IntProperty(name="Target bone map row", default=0)
+    target_bone_map_family: StringProperty(name="Target rig family", default="")
+    target_bone_map_rig: StringProperty(
+        name="Mapped target", default="", description="The target object the target bone map was made for")
 
 
 CLASSES = (RemogenBoneMapItem, RemogenSettings)

@@ -21,16 +21,17 @@ _RADIUS = {
 }
 
 
-def proxy_body(names: list[str], ob: bpy.types.Object
+def proxy_body(names: list[str], ob: bpy.types.Object, radius_names: list[str] | None = None
                ) -> tuple[np.ndarray, np.ndarray, dict[str, tuple[np.ndarray, np.ndarray]]]:
-    """Capsule-like prisms along every bone, each rigidly weighted to its bone."""
+    """Capsule-like prisms along every bone, each rigidly weighted to its bone. The capsules' radii are
+    looked up by `radius_names` (SMPL-X joint names, one per bone; default: the bone names)."""
     sides = 8
     ang = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
     verts, faces, groups = [], [], {}
-    for n in names:
+    for n, rn in zip(names, radius_names or names):
         bone = ob.data.bones[n]
         h, t = np.array(bone.head_local), np.array(bone.tail_local)
-        r = _RADIUS.get(n, _RADIUS.get("left_" + n[6:], 0.05) if n.startswith("right_") else 0.05)
+        r = _RADIUS.get(rn, _RADIUS.get("left_" + rn[6:], 0.05) if rn.startswith("right_") else 0.05)
         axis = t - h
         length = float(np.linalg.norm(axis))
         axis = axis / length

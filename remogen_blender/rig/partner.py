@@ -9,14 +9,19 @@ from .._runtime import UserError, api
 _RT = api()   # the runtime's public package; these parts of it need no PyTorch
 
 
-def check_partner(ob: bpy.types.Object | None) -> bpy.types.Object:
+def check_armature(ob: bpy.types.Object | None, what: str = "Partner") -> bpy.types.Object:
     """`ob` when it is an armature; else a one-line UserError that says what to pick instead."""
     if ob is None:
-        raise UserError("Pick a partner armature in the ReMoGen panel")
+        raise UserError(f"Pick a {what.lower()} armature in the ReMoGen panel")
     if ob.type != 'ARMATURE':
         article = "an" if ob.type[:1] in "AEIOU" else "a"
-        raise UserError(f"Partner '{ob.name}' is {article} {ob.type}, not an armature: pick the partner's armature")
+        raise UserError(f"{what} '{ob.name}' is {article} {ob.type}, not an armature: pick the "
+                        f"{what.lower()}'s armature")
     return ob
+
+
+def check_partner(ob: bpy.types.Object | None) -> bpy.types.Object:
+    return check_armature(ob, "Partner")
 
 
 class PartnerReader:

@@ -8,12 +8,7 @@ import numpy as np
 
 from model_runtime.skeleton import JOINT_NAMES, PARENTS, rest_joints, standing_pelvis_height
 
-MIXAMO = {
-    "pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2", "neck": "Neck", "head": "Head",
-    "left_hip": "LeftUpLeg", "left_knee": "LeftLeg", "left_ankle": "LeftFoot", "left_foot": "LeftToeBase",
-    "left_collar": "LeftShoulder", "left_shoulder": "LeftArm", "left_elbow": "LeftForeArm", "left_wrist": "LeftHand",
-}
-MIXAMO.update({"right_" + k[5:]: v.replace("Left", "Right") for k, v in list(MIXAMO.items()) if k.startswith("left_")})
+from remogen_blender.demo import MIXAMO_NAMES as MIXAMO
 
 
 def rest_heads() -> np.ndarray:
@@ -134,3 +129,101 @@ def poison_weights(model) -> None:
 def ego_pose(ego) -> np.ndarray:
     """(bones, 7) pose-bone quaternions and locations, to compare before and after."""
     return np.array([tuple(pb.rotation_quaternion) + tuple(pb.location) for pb in ego.pose.bones])
+
+
+# ---------------------------------------------------------------------------- target rigs (retargeting)
+
+def humanoid_heads(scale: float = 1.0, leg_scale: float = 1.0, a_pose_deg: float = 0.0) -> np.ndarray:
+    """(22, 3) SMPL-X-ordered joint positions of a standing humanoid, soles at z = 0: the SMPL-X rest body
+    with its legs (hip to toe) `leg_scale` times as long, its arms lowered `a_pose_deg` from the T-pose,
+    all scaled by `scale`."""
+    from remogen_blender.demo import humanoid_heads as heads
+    return heads(scale, leg_scale, a_pose_deg)
+
+
+def make_target(name: str = "Character", family: str = "mixamo", scale: float = 1.0, leg_scale: float = 1.0,
+                a_pose_deg: float = 0.0, centimetres: bool = False, location=(0.0, 0.0, 0.0), yaw: float = 0.0,
+                rolls: int | None = 0, unmapped: tuple[str, ...] = ()) -> bpy.types.Object:
+    """A user's humanoid rig as an importer leaves it: bones aimed at their child joints, random rolls
+    (seed `rolls`; None: roll 0), named the Mixamo way ("mixamorig:Hips") or Rigify's deform bones
+    ("DEF-spine", with Rigify's unmapped "root" parent and "DEF-spine.005" between neck and head).
+
+    centimetres: an FBX import without "Apply Transform": bones in Y-up centimetres, the object turned 90
+    degrees about X and scaled 0.01. `unmapped` joints get bones no bone map knows (a rig missing them).
+    """
+    from model_runtime.data.bone_maps import BONE_MAPS
+    from remogen_blender.rig.ego import LEAF_TAIL, TAIL_CHILD
+    heads = humanoid_heads(scale, leg_scale, a_pose_deg)
+    if family == "mixamo":
+        names = {j: "mixamorig:" + MIXAMO[j] for j in JOINT_NAMES}
+    elif family == "rigify":
+        names = dict(BONE_MAPS["rigify"])
+    else:
+        raise ValueError(family)
+    for k, j in enumerate(unmapped):
+        names[j] = f"Extra{k}"
+    rng = np.random.default_rng(rolls) if rolls is not None else None
+    if centimetres:
+        def to_data(p):                              # world metres -> Y-up centimetres under the object
+            p = np.asarray(p, dtype=np.float64)
+            return np.array((p[0], p[2], -p[1])) * 100.0
+    else:
+        def to_data(p):
+            return np.asarray(p, dtype=np.float64)
+    arm = bpy.data.armatures.new(name)
+    ob = bpy.data.objects.new(name, arm)
+    bpy.context.scene.collection.objects.link(ob)
+    ob.location = location
+    if centimetres:
+        ob.rotation_euler = (math.pi / 2, 0.0, yaw)
+        ob.scale = (0.01, 0.01, 0.01)
+    else:
+        ob.rotation_euler = (0.0, 0.0, yaw)
+    bpy.context.view_layer.objects.active = ob
+    bpy.ops.object.mode_set(mode='EDIT')
+    index = {j: i for i, j in enumerate(JOINT_NAMES)}
+
+    def bone(bname, head, tail, parent=None):
+        eb = arm.edit_bones.new(bname)
+        eb.head, eb.tail = to_data(head), to_data(tail)
+        eb.roll = float(rng.uniform(-math.pi, math.pi)) if rng is not None else 0.0
+        eb.parent = parent
+        return eb
+
+    ebs = {}
+    for i, j in enumerate(JOINT_NAMES):
+        child = TAIL_CHILD.get(j)
+        if child is not None:
+            tail = heads[index[child]]
+        elif j.endswith("wrist"):                    # along the forearm, as hands are
+            forearm = heads[i] - heads[PARENTS[i]]
+            tail = heads[i] + 0.08 * scale * forearm / np.linalg.norm(forearm)
+        else:
+            tail = heads[i] + np.array(LEAF_TAIL[j]) * scale
+        ebs[j] = bone(names[j], heads[i], tail)
+    for i, j in enumerate(JOINT_NAMES):
+        if PARENTS[i] >= 0:
+            ebs[j].parent = ebs[JOINT_NAMES[PARENTS[i]]]
+    if family == "rigify":
+        ebs["pelvis"].parent = bone("root", (0.0, 0.0, 0.0), (0.0, 0.3 * scale, 0.0))
+        neck, head = heads[index["neck"]], heads[index["head"]]
+        mid = 0.5 * (neck + head)
+        ebs["neck"].tail = to_data(mid)
+        ebs["head"].parent = bone("DEF-spine.005", mid, head, ebs["neck"])
+    bpy.ops.object.mode_set(mode='OBJECT')
+    return ob
+
+
+def target_scene(context, target: bpy.types.Object, mode: str = 'BOTH', fps: int = 30, frames=(1, 91)) -> dict:
+    """The demo scene (a partner walking up to the ego) with `target` set as the target rig."""
+    d = demo_scene(context, fps=fps, frames=frames)
+    st = context.scene.remogen
+    st.target = target
+    st.target_mode = mode
+    if mode == 'TARGET':
+        ego = d.pop("ego")
+        st.ego = None
+        for ob in [ego, *ego.children]:
+            bpy.data.objects.remove(ob)
+    d["target"] = target
+    return d

@@ -27,6 +27,39 @@ def test_demo_scene_and_strip(tmp_path, tiny_model_file):
     assert (width, height) == (128, 64)
 
 
+def test_demo_with_a_mixamo_target(fresh, tmp_path, tiny_model_file):
+    """`--target mixamo`: a Mixamo-named character with longer legs and an A-pose rest stands in for the ego;
+    the bake keys it (and no ego is made) and the strip shows it."""
+    import scenes
+    from remogen_blender import demo
+    env = subprocess_env(ROOT)
+    r = subprocess.run([sys.executable, "-m", "remogen_blender.demo", "--out", str(tmp_path), "--model",
+                        str(tiny_model_file), "--shots", "2", "--size", "64", "--target", "mixamo"], cwd=tmp_path,
+                       env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "remogen demo: baked 118 frames" in r.stdout and "onto 'Character'" in r.stdout
+    png = (tmp_path / "demo_strip.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and int.from_bytes(png[16:20], "big") == 128
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "demo.blend"))
+    st = bpy.context.scene.remogen
+    character = bpy.data.objects["Character"]
+    assert st.target == character and st.target_mode == 'TARGET' and st.ego is None
+    assert st.target_bone_map_family == "mixamo"
+    assert not any(ob.type == 'ARMATURE' and ob.name.startswith("Ego") for ob in bpy.data.objects)
+    act = character.animation_data.action
+    assert act.name.startswith("ReMoGen_Character") and len(scenes.action_fcurves(act)) == 22 * 4 + 3
+    bones = character.data.bones
+    joints = {n: np.array(bones["mixamorig:" + demo.MIXAMO_NAMES[n]].head_local) for n in ("left_hip", "left_ankle")}
+    legs = np.linalg.norm(joints["left_hip"] - joints["left_ankle"])
+    ego_legs = np.linalg.norm(np.subtract(*demo.humanoid_heads()[[1, 7]]))
+    assert legs / ego_legs == pytest.approx(demo.TARGET_LEG_SCALE, rel=0.02)
+    assert bones["mixamorig:LeftForeArm"].head_local.z < bones["mixamorig:LeftArm"].head_local.z - 0.1   # A-pose
+    bpy.context.scene.frame_set(1)
+    start = np.array(character.pose.bones["mixamorig:Hips"].head)
+    bpy.context.scene.frame_set(118)
+    assert np.linalg.norm(np.array(character.pose.bones["mixamorig:Hips"].head) - start) > 0.05   # it moved
+
+
 def test_demo_clip_is_small_cmu_data():
     import numpy as np
     from model_runtime import WALK_CLIP
