@@ -7,10 +7,11 @@ Public API:
                         alpha={"hhi": 1.0, "hsi": 1.0}, guidance=5.0, fwsr=True, scene=None)
     s.reset(root_position=(0, 0, 0), yaw=0.0)
     f = s.step(partner=joints_22x3_or_None, goal=xyz_or_None)
+    s.text_warning                             # one line when the text cannot be read (prompt_warning(text))
 
 Importing this package does not import PyTorch: the skeleton description (JOINT_NAMES, PARENTS,
-rest_joints_np), the bone maps, the NumPy quaternion maths and the error types work without it, so a
-host application can show and check rigs before PyTorch is installed. The model, the session and the
+rest_joints_np), the bone maps, the NumPy quaternion maths, the error types and prompt_warning work
+without it, so a host application can show and check rigs and prompts before PyTorch is installed. The model, the session and the
 motion readers import PyTorch when first used. This package never imports bpy.
 """
 from __future__ import annotations
@@ -30,6 +31,7 @@ from .config import ModelConfig
 from .data.bone_maps import BoneMapGuess, guess_bone_map, normalise_name, validate_bone_map
 from .errors import MAX_COORD, MAX_GUIDANCE, InputError, ModelFileError, ModelOutputError, RemogenError
 from .joints import JOINT_NAMES, NUM_JOINTS, PARENTS, rest_joints_np, standing_pelvis_height
+from .prompt import prompt_warning
 from .quat import continuous_quaternions, matrix_to_quat_np, qconj, qmul, qslerp, rigid_rotation
 
 # name -> module for the parts that need PyTorch (or are heavy), imported on first use
@@ -42,7 +44,7 @@ _LAZY = {
 
 __all__ = ["load_model", "save_model", "ReactionSession", "EgoFrame", "OccupancyGrid", "ModelConfig", "ControlConfig",
            "RemogenError", "InputError", "ModelFileError", "ModelOutputError", "MAX_COORD", "MAX_GUIDANCE",
-           "Motion", "load_motion",
+           "Motion", "load_motion", "prompt_warning",
            "WALK_CLIP", "JOINT_NAMES", "NUM_JOINTS", "PARENTS", "rest_joints_np", "standing_pelvis_height",
            "BoneMapGuess", "guess_bone_map", "normalise_name", "validate_bone_map",
            "qmul", "qconj", "qslerp", "matrix_to_quat_np", "rigid_rotation", "continuous_quaternions"]

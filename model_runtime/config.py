@@ -21,7 +21,14 @@ _INT_BOUNDS = {
     "partner_window": (1, 100), "voxel_resolution": (1, 128), "voxel_patch": (1, 128), "scene_layers": (0, 32),
     "fwsr_dim": (1, 2048), "fwsr_heads": (1, 64),
 }
-_TEXT_BOUNDS = {"dim": (1, 2048), "buckets": (1, 65536), "seed": (0, 2 ** 63 - 1)}
+# Text encoder fields per encoder name (text.py): integer bounds, and for the static table its id.
+_TEXT_BOUNDS = {"hashed_ngram": {"dim": (1, 2048), "buckets": (1, 65536), "seed": (0, 2 ** 63 - 1)},
+                "minilm_static": {"dim": (1, 2048)}}
+_TEXT_TABLE_KEY = {"minilm_static": "table"}
+# The id of the static text table that ships in model_runtime/text_tables/ (python -m model_runtime.text_build
+# prints it; a test checks that the two agree).
+TEXT_TABLE_ID = "4602821ace6dbfdb"
+STATIC_TEXT = {"name": "minilm_static", "dim": 128, "table": TEXT_TABLE_ID}
 # (width, heads) pairs: attention splits the width evenly over the heads
 _HEADS = (("vae_dim", "vae_heads"), ("den_dim", "den_heads"), ("mim_dim", "mim_heads"), ("fwsr_dim", "fwsr_heads"))
 _MAX_SCENE_EXTENT = 10.0   # metres from the ego, per axis
@@ -66,13 +73,27 @@ def _config_problem(c: "ModelConfig") -> str | None:
             or not all(isinstance(ax, tuple) and len(ax) == 2 and all(_is_number(v) for v in ax) for ax in b)
             or not all(-_MAX_SCENE_EXTENT <= lo < hi <= _MAX_SCENE_EXTENT for lo, hi in b)):
         return f"scene_bounds = {b!r} must be three (low, high) pairs in metres within +-{_MAX_SCENE_EXTENT:g}"
-    t = c.text
+    return _text_problem(c.text)
+
+
+def _text_problem(t) -> str | None:
+    """What is wrong with a text encoder config, or None: the fields its encoder name needs, and no others."""
     if not isinstance(t, dict) or not isinstance(t.get("name"), str):
         return f"text = {t!r} must be a dict with a text encoder 'name'"
-    for key, (lo, hi) in _TEXT_BOUNDS.items():
+    bounds = _TEXT_BOUNDS.get(t["name"])
+    if bounds is None:
+        return f"text['name'] = {t['name']!r} must be one of {', '.join(_TEXT_BOUNDS)}"
+    table_key = _TEXT_TABLE_KEY.get(t["name"])
+    expected = {"name", *bounds, *([table_key] if table_key else [])}
+    if set(t) != expected:
+        return f"text = {t!r} must have exactly the fields {', '.join(sorted(expected))}"
+    for key, (lo, hi) in bounds.items():
         problem = _int_problem(f"text[{key!r}]", t.get(key), lo, hi)
         if problem:
             return problem
+    if table_key and not (isinstance(t[table_key], str) and 1 <= len(t[table_key]) <= 64
+                          and t[table_key].isalnum()):
+        return f"text[{table_key!r}] = {t[table_key]!r} must be a text table id (letters and digits)"
     return None
 
 
@@ -100,7 +121,7 @@ class ModelConfig:
     den_heads: int = 4
     den_ff: int = 256
     diffusion_steps: int = 10
-    text: dict = field(default_factory=lambda: {"name": "hashed_ngram", "dim": 128, "buckets": 8192, "seed": 1234})
+    text: dict = field(default_factory=lambda: dict(STATIC_TEXT))   # a file's stored text config wins
     # Meta-Interaction Modules
     mim_dim: int = 64
     mim_heads: int = 4
@@ -172,7 +193,7 @@ PRESETS: dict[str, ModelConfig] = {
                          den_dim=512, den_layers=8, den_heads=8, den_ff=1024, mim_dim=256, mim_heads=4, mim_ff_mult=1,
                          inject_layers=(3,), fwsr_dim=128, scene_layers=2,
                          scene_bounds=((-0.6, 0.6), (-0.6, 0.6), (0.1, 1.2)),
-                         text={"name": "hashed_ngram", "dim": 256, "buckets": 16384, "seed": 1234}),
+                         text=dict(STATIC_TEXT)),
 }
 
 

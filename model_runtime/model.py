@@ -13,6 +13,7 @@ from .nets.denoiser import LatentDenoiser
 from .nets.fwsr import FrameRefiner
 from .nets.interaction import MetaInteractionModule, OthersEncoder, SceneEncoder, compose_residuals
 from .nets.vae import MotionVAE
+from .prompt import prompt_warning
 from .text import TextEncoder, build_text_encoder
 
 MODULE_NAMES = ("hhi", "hsi")
@@ -114,6 +115,11 @@ class ReMoGenModel(nn.Module):
     # ------------------------------------------------------------------ conditioning
     def encode_text(self, text: str) -> torch.Tensor:
         return self.text_encoder.encode([text])
+
+    @staticmethod
+    def text_warning(text: str) -> str | None:
+        """One line when the text encoder cannot read `text` (prompt.py), else None."""
+        return prompt_warning(text)
 
     def encode_contexts(self, partner: torch.Tensor | None, present: torch.Tensor | None,
                         occupancy: torch.Tensor | None, goal: torch.Tensor | None,

@@ -237,6 +237,13 @@ class ReactionSession:
             raise InputError(f"text must be a string, got {type(value).__name__}")
         self._text = value
         self._text_emb = self.model.encode_text(value)
+        self._text_warning = self.model.text_warning(value)
+
+    @property
+    def text_warning(self) -> str | None:
+        """One line when the text encoder cannot read the current text (another script, only emoji or symbols),
+        else None."""
+        return self._text_warning
 
     @property
     def alpha(self) -> dict[str, float]:

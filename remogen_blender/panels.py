@@ -80,6 +80,9 @@ class REMOGEN_PT_main(bpy.types.Panel):
 
         col = layout.column(align=True)
         col.prop(st, "text", text="")
+        text_note = _runtime.api().prompt_warning(st.text)   # torch-free: shown before PyTorch is installed too
+        if text_note:
+            col.label(text=text_note, icon='ERROR')
         col.prop(st, "alpha_hhi", slider=True)
         col.prop(st, "alpha_hsi", slider=True)
         col.prop(st, "guidance")

@@ -9,6 +9,7 @@ import torch
 
 from model_runtime import load_model
 from model_runtime.train import train_stage
+from model_runtime.training.recipe import TEXT_DROP
 from model_runtime.training.samples import SegmentSampler
 from synthetic import synthetic_library
 from paths import ROOT
@@ -55,6 +56,8 @@ def test_vae_and_prior_stages_train_resume_and_save(tmp_path, lib):
     assert model.meta["trained"] and set(model.meta["stages"]) == {"vae", "prior"}
     assert model.meta["non_commercial"] is True       # the synthetic library mixes in 'bandai' clips
     assert model.meta["stages"]["prior"]["val_loss"] is not None
+    # the caption dropout classifier-free guidance relies on is saved with the stage that trained with it
+    assert model.meta["stages"]["prior"]["text_drop"] == TEXT_DROP and "text_drop" not in model.meta["stages"]["vae"]
     assert not torch.equal(model.stats.std, torch.ones(276))  # stats were fitted in the vae stage
 
 

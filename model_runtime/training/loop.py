@@ -18,11 +18,11 @@ from ..data.library import ClipLibrary
 from ..errors import RemogenError
 from ..model import ReMoGenModel
 from .ema import EMA
-from .recipe import DEFAULT_STEPS, RECIPE
+from .recipe import DEFAULT_STEPS, RECIPE, TEXT_DROP
 from .report import StageRun, say, validation_history
 from .samples import SegmentSampler
 from .setup import build_samplers, check_library, decoder_sensitivity, fit_stats
-from .stages import STAGES, StageLoss, freeze_for, trainable_module
+from .stages import STAGES, TEXT_STAGES, StageLoss, freeze_for, trainable_module
 
 
 def rank_and_world() -> tuple[int, int]:
@@ -153,6 +153,8 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         stages[stage] = {"steps": step, "wall_s": round(wall + time.time() - t_start, 1), "batch": batch,
                          "lr": lr, "world_size": world, "clips": len(lib.split("train")),
                          "val_loss": ([None] + [v for _, v in validation_history(log_path)])[-1]}
+        if stage in TEXT_STAGES:
+            stages[stage]["text_drop"] = TEXT_DROP
         meta.update({"trained": True, "stages": stages, "sources": sorted(set(lib.sources)),
                      "non_commercial": "bandai" in set(lib.sources)})
         model.meta = meta

@@ -15,6 +15,10 @@ from __future__ import annotations
 RECIPE = {"vae": (6000, 128, 1e-4), "prior": (4000, 128, 1e-4), "hhi": (3000, 128, 1e-3),
           "hsi": (7500, 128, 1e-3), "fwsr": (600, 64, 1e-3)}
 DEFAULT_STEPS = {k: v[0] for k, v in RECIPE.items()}
+# Caption dropout of the denoising stages (prior, hhi, hsi): the share of windows trained with the null text
+# token instead of their caption, so that classifier-free guidance has an unconditional model to steer away
+# from. Recorded with each stage in the model file (meta["stages"][stage]["text_drop"]).
+TEXT_DROP = 0.1
 # HHI pair kinds (data/pairs/hhi.py): turn_to_face (pivot-turned standing clips, data/turns.py) is what made the ego
 # turn to a side-on partner: side-on approach scenario, 8 seeds, facing error 103 -> 28 deg at 3,000 steps (prior
 # alone 84-89). The same run gave 36 deg at 1,500 steps (4 seeds) and 52 at 4,500 although the held-out loss still

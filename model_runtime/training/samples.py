@@ -21,6 +21,7 @@ import torch
 
 from ..config import ModelConfig
 from ..data.library import ClipLibrary
+from ..data.phrasings import pick_phrasing
 from ..features import FeatureStats, canonicalize, to_canonical, world_points_to_canonical
 from ..skeleton import NUM_JOINTS, forward_kinematics
 
@@ -129,7 +130,7 @@ class SegmentSampler:
             seg = self.stats.normalize(seg)
             hist.append(seg[:h])
             fut.append(seg[h:])
-            texts.append(self.lib.captions[clip])
+            texts.append(pick_phrasing(self.lib.captions[clip], self.gen))   # one of its phrasings per window
             if self.pairs is not None:
                 lag = int(torch.randint(0, f + 1, (1,), generator=self.gen))
                 end = s + h - 1 - lag  # last partner frame seen by the diffusion

@@ -13,11 +13,12 @@ import torch
 from torch import nn
 
 from ..model import Contexts, ReMoGenModel
+from .recipe import TEXT_DROP
 from .samples import Batch
 
 STAGES = ("vae", "prior", "hhi", "hsi", "fwsr")
+TEXT_STAGES = ("prior", "hhi", "hsi")   # the stages that train the denoiser's text input (with caption dropout)
 KL_WEIGHT = 1e-4
-TEXT_DROP = 0.1  # classifier-free guidance needs the model to also learn without text
 
 
 def trainable_module(model: ReMoGenModel, stage: str) -> nn.Module:

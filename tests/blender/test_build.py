@@ -75,6 +75,7 @@ def test_slim_zip_builds_validates_installs_and_runs(tmp_path, tiny_model_file):
     names = zipfile.ZipFile(z).namelist()
     assert "blender_manifest.toml" in names and "__init__.py" in names
     assert "model_runtime/__init__.py" in names and "model_runtime/voxel.py" in names
+    assert "model_runtime/text_tables/minilm_static.npz" in names      # the default text encoder's table
     assert not any("__pycache__" in n or n.startswith("wheels/") for n in names)
     weights = ROOT / "model_runtime" / "weights" / "default.pt"
     assert ("model_runtime/weights/default.pt" in names) == weights.is_file()

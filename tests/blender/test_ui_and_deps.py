@@ -146,3 +146,22 @@ def test_panel_shows_a_partly_trained_model_warning(fresh, tiny_model_file):
     finally:
         _runtime.clear_model_cache()
     assert _runtime.model_note() == ""
+
+
+def test_panel_warns_about_a_prompt_the_text_encoder_cannot_read(fresh):
+    import scenes
+    from remogen_blender.panels import REMOGEN_PT_main
+    scenes.demo_scene(fresh)
+    st = fresh.scene.remogen
+
+    def warnings_shown() -> list[str]:
+        return [kw.get("text", "") for name, a, kw in _draw(REMOGEN_PT_main, fresh)
+                if name == "label" and kw.get("icon") == 'ERROR' and "English" in kw.get("text", "")]
+
+    st.text = "человек прыгает"
+    shown = warnings_shown()
+    assert len(shown) == 1 and "человек прыгает" in shown[0], shown
+    st.text = "🙂🙂"
+    assert len(warnings_shown()) == 1
+    st.text = "a person jumps"
+    assert warnings_shown() == []

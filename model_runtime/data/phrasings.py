@@ -1,0 +1,178 @@
+"""Several phrasings of one caption, so the prior learns the motion rather than one sentence.
+
+A clip's caption (data/captions.py: "a person walks to the left, tired") is turned into the sentences a user
+might type for the same motion: other subjects ("someone", "a man"), the present progressive ("a person is
+walking to the left"), the imperative ("walk to the left"), verb and style synonyms ("lifts" for "raises",
+"wearily" for "tired") and the style as an adjective ("a tired person walks to the left"). Training draws
+one phrasing per window (training/samples.py); the clip's split and stored caption do not change.
+
+HELD_OUT_PROMPTS are paraphrases that appear in no phrasing of any caption the data folder gives (a test
+checks it), for measuring whether the prior follows wording it was never trained on.
+"""
+from __future__ import annotations
+
+import re
+from functools import lru_cache
+
+import torch
+
+SUBJECTS = ("a person", "someone", "a man", "a woman", "the person")
+ADJECTIVE_SUBJECTS = ("person", "man", "woman")   # "a tired man ..."
+
+# Base forms of the verbs captions start their clauses with; a clause starting with another word keeps its
+# wording (only the subject changes).
+VERBS = frozenset("""walk run jog dash bow wave guide respond call punch kick slash dance raise fight jump keep lift
+    rise scoop bend play wash turn reach tiptoe grab sit stand hop skip squat clap climb step throw catch push pull
+    carry stretch march sneak limp shuffle crawl spin roll fall swing look point touch cross lower rock dangle balance
+    do go drink pick shoot dribble kneel lie sweep mop toss circle hold shake nod""".split())
+_DOUBLED = frozenset("run jog hop skip step sit spin grab clap nod swim stop trip slip drop squat dig tap".split())
+
+# Swaps of a clause's first words that keep the motion (third person, as captions are written).
+VERB_SYNONYMS = {
+    "dashes": ("rushes",), "punches": ("throws a punch",), "bows": ("takes a bow",), "raises": ("lifts",),
+    "calls out to": ("shouts to",), "responds to": ("answers",), "guides": ("shows",), "slashes with": ("swings",),
+    "washes": ("cleans",), "fights with": ("battles with",), "jogs": ("runs at a jog",),
+    "walks briskly": ("walks at a brisk pace",), "walks slowly": ("walks at a slow pace",), "walks with long strides": ("walks with big steps",),
+}
+# Bandai styles (the tail after ", ") -> other ways of saying it; and as an adjective of the subject.
+STYLE_SYNONYMS = {
+    "happily": ("cheerfully", "in a happy mood"), "sadly": ("sorrowfully", "in a sad mood"),
+    "angrily": ("in anger", "furiously"), "proudly": ("with pride",), "unconfidently": ("timidly", "without confidence"),
+    "in a masculine way": ("in a manly way",), "in a feminine way": ("in a ladylike way",),
+    "childishly": ("like a child",), "like an old person": ("like someone old",),
+    "like an elderly person": ("like a senior",), "tired": ("tiredly", "wearily"),
+    "exhausted": ("worn out", "in an exhausted way"), "actively": ("energetically", "vigorously"),
+    "like in a musical": ("theatrically",), "like a giant": ("as a giant would",), "like a thug": ("like a gangster",),
+    "youthfully": ("in a youthful way",),
+}
+STYLE_ADJECTIVES = {
+    "happily": "happy", "sadly": "sad", "angrily": "angry", "proudly": "proud", "unconfidently": "timid",
+    "childishly": "childish", "tired": "tired", "exhausted": "exhausted", "actively": "energetic",
+    "youthfully": "youthful", "like an old person": "old", "like an elderly person": "elderly",
+}
+
+# Paraphrases of the evaluation's text families that no caption phrasing contains (prompt -> family).
+HELD_OUT_PROMPTS = {
+    "someone sprints across the room": "run", "a person races ahead at top speed": "run",
+    "a person strolls leisurely": "walk slowly", "someone ambles along unhurriedly": "walk slowly",
+    "a person stays perfectly still": "stand", "someone remains motionless": "stand",
+    "someone leaps into the air": "jump", "a person springs upward": "jump",
+    "someone delivers a high kick": "kick", "a person strikes out with a foot": "kick",
+    "someone waves hello": "wave", "a person signals hello with a wave": "wave",
+    "a person backs away": "backwards", "someone retreats step by step": "backwards",
+    "someone performs a lively dance": "dance", "a person grooves to music": "dance",
+}
+
+
+def third_person(verb: str) -> str:
+    """'walk' -> 'walks', 'dash' -> 'dashes', 'carry' -> 'carries', 'go' -> 'goes'."""
+    if verb in ("do", "go"):
+        return verb + "es"
+    if re.search(r"(s|sh|ch|x|z)$", verb):
+        return verb + "es"
+    if re.search(r"[^aeiou]y$", verb):
+        return verb[:-1] + "ies"
+    return verb + "s"
+
+
+def ing_form(verb: str) -> str:
+    """'walk' -> 'walking', 'dance' -> 'dancing', 'run' -> 'running', 'lie' -> 'lying'."""
+    if verb.endswith("ie"):
+        return verb[:-2] + "ying"
+    if verb.endswith("e") and not verb.endswith(("ee", "oe", "ye")):
+        return verb[:-1] + "ing"
+    if verb in _DOUBLED:
+        return verb + verb[-1] + "ing"
+    return verb + "ing"
+
+
+_BASE = {third_person(v): v for v in VERBS}
+
+
+def _clauses(predicate: str) -> list[str]:
+    """'walks and turns left' -> ['walks', ' and ', 'turns left']: clauses with their joints kept."""
+    return re.split(r"(, | and )", predicate)
+
+
+def _verb_form(predicate: str, form: str) -> str | None:
+    """The predicate with every clause-leading verb in `form` ('third', 'ing' or 'base'); None when its first
+    word is not a known verb (the caption then keeps its wording)."""
+    head, colon, tail = predicate.partition(":")
+    parts = _clauses(head)
+    if parts[0].split(" ", 1)[0] not in _BASE:
+        return None
+    out = []
+    for k, part in enumerate(parts):
+        word, _, rest = part.partition(" ")
+        base = _BASE.get(word) if k % 2 == 0 else None
+        if base is None:
+            out.append(part)
+            continue
+        new = {"third": word, "ing": ing_form(base), "base": base}[form]
+        out.append(f"{new} {rest}".rstrip())
+    return "".join(out) + colon + tail
+
+
+def _predicate_variants(predicate: str) -> list[str]:
+    """The predicate and its verb-synonym swaps."""
+    out = [predicate]
+    for key, subs in VERB_SYNONYMS.items():
+        if predicate == key or predicate.startswith(key + " "):
+            out += [sub + predicate[len(key):] for sub in subs]
+    return out
+
+
+def _split_style(caption: str) -> tuple[str, str]:
+    """'a person bows, happily' -> ('a person bows', 'happily'); no known style tail -> (caption, '')."""
+    head, sep, tail = caption.rpartition(", ")
+    return (head, tail) if sep and tail in STYLE_SYNONYMS else (caption, "")
+
+
+def _article(word: str) -> str:
+    return "an" if word[0] in "aeiou" else "a"
+
+
+@lru_cache(maxsize=4096)
+def caption_phrasings(caption: str) -> tuple[str, ...]:
+    """The caption first, then its other phrasings (no duplicates). A caption not of the form 'a person ...'
+    has only itself."""
+    caption = caption.strip()
+    if not caption.startswith("a person"):
+        return (caption,)
+    base, style = _split_style(caption)
+    rest = base[len("a person"):]
+    if not rest.startswith(" "):                   # "a person: dance - ..." keeps its wording past the subject
+        return tuple(dict.fromkeys([caption] + [s + rest + (f", {style}" if style else "") for s in SUBJECTS]))
+    styles = [style, *STYLE_SYNONYMS[style]] if style else [""]
+    out = [caption]
+    for predicate in _predicate_variants(rest[1:]):
+        forms = {f: _verb_form(predicate, f) for f in ("third", "ing", "base")}
+        if forms["third"] is None:
+            forms = {"third": predicate, "ing": None, "base": None}
+        for how in styles:
+            tail = f", {how}" if how else ""
+            for subject in SUBJECTS:
+                out.append(f"{subject} {forms['third']}{tail}")
+                if forms["ing"]:
+                    out.append(f"{subject} is {forms['ing']}{tail}")
+            if forms["base"]:
+                out.append(f"{forms['base']}{tail}")
+        adjective = STYLE_ADJECTIVES.get(style)
+        if adjective:
+            for noun in ADJECTIVE_SUBJECTS:
+                subject = f"{_article(adjective)} {adjective} {noun}"
+                out.append(f"{subject} {forms['third']}")
+                if forms["ing"]:
+                    out.append(f"{subject} is {forms['ing']}")
+    return tuple(dict.fromkeys(out))
+
+
+def pick_phrasing(caption: str, gen: torch.Generator) -> str:
+    """One of the caption's phrasings, uniformly (drawn from `gen`, so a seeded sampler repeats)."""
+    options = caption_phrasings(caption)
+    return options[int(torch.randint(0, len(options), (1,), generator=gen))] if len(options) > 1 else options[0]
+
+
+def normalised_words(text: str) -> str:
+    """Lower-case words joined by single spaces, framed by spaces: for whole-word containment checks."""
+    return " " + " ".join(re.findall(r"[a-z0-9]+", text.lower())) + " "

@@ -1,0 +1,70 @@
+"""Several phrasings per caption, one drawn per training window, and held-out prompts that no phrasing contains."""
+from __future__ import annotations
+
+import pytest
+import torch
+
+from model_runtime.data.phrasings import (HELD_OUT_PROMPTS, caption_phrasings, ing_form, normalised_words,
+                                          pick_phrasing, third_person)
+from paths import DATA
+
+
+def test_verb_forms():
+    assert [third_person(v) for v in ("walk", "dash", "carry", "go", "punch", "play")] == \
+        ["walks", "dashes", "carries", "goes", "punches", "plays"]
+    assert [ing_form(v) for v in ("walk", "dance", "run", "lie", "tiptoe", "sit")] == \
+        ["walking", "dancing", "running", "lying", "tiptoeing", "sitting"]
+
+
+def test_a_bandai_caption_gets_subjects_tenses_synonyms_and_the_style_as_an_adjective():
+    out = caption_phrasings("a person walks to the left, tired")
+    assert out[0] == "a person walks to the left, tired" and len(out) == len(set(out))
+    for p in ("someone walks to the left, tired", "a man is walking to the left, tired", "walk to the left, tired",
+              "a woman walks to the left, wearily", "a tired person walks to the left",
+              "a tired man is walking to the left"):
+        assert p in out
+    raised = caption_phrasings("a person raises the left hand, like an elderly person")
+    assert "an elderly woman lifts the left hand" in raised and "lift the left hand, like a senior" in raised
+
+
+def test_every_clause_verb_changes_form_and_unknown_wording_is_kept():
+    out = caption_phrasings("a person walks and turns left")
+    assert "a person is walking and turning left" in out and "walk and turn left" in out
+    out = caption_phrasings("a person dances: small jetes and pirouette")
+    assert "someone is dancing: small jetes and pirouette" in out   # only the part before the colon changes
+    assert caption_phrasings("a person: golf swing") == ("a person: golf swing", "someone: golf swing",
+                                                         "a man: golf swing", "a woman: golf swing",
+                                                         "the person: golf swing")
+    assert caption_phrasings("walk fast") == ("walk fast",)           # not a 'a person ...' caption: itself only
+
+
+def test_pick_phrasing_repeats_with_a_seed_and_varies():
+    draw = [pick_phrasing("a person punches", torch.Generator().manual_seed(3)) for _ in range(2)]
+    assert draw[0] == draw[1]
+    gen = torch.Generator().manual_seed(0)
+    seen = {pick_phrasing("a person punches", gen) for _ in range(60)}
+    assert len(seen) > 5 and seen <= set(caption_phrasings("a person punches"))
+
+
+def test_training_windows_carry_phrasings_of_their_clip_caption():
+    from model_runtime import load_model
+    from model_runtime.training.samples import SegmentSampler
+    from synthetic import synthetic_library
+    lib = synthetic_library(6, 40)
+    model = load_model(config="tiny")
+    b = SegmentSampler(lib, list(range(6)), model.cfg, model.stats, seed=0).sample(64)
+    allowed = {p for c in lib.captions for p in caption_phrasings(c)}
+    assert set(b.text) <= allowed and len(set(b.text)) > len(set(lib.captions))
+
+
+def test_held_out_prompts_are_in_no_phrasing_of_the_data_folder_captions():
+    from model_runtime.data.clip_files import data_files
+    if not (DATA / "cmu" / "index.csv").exists():
+        pytest.skip("motion data not present beside the repository")
+    captions = {f.caption for f in data_files(DATA)[0]}
+    assert len(captions) > 50
+    phrasings = [normalised_words(p) for c in captions for p in caption_phrasings(c)]
+    assert len(HELD_OUT_PROMPTS) >= 8
+    for prompt in HELD_OUT_PROMPTS:
+        words = normalised_words(prompt)
+        assert not any(words in p for p in phrasings), prompt
