@@ -1,25 +1,23 @@
-"""Behaviour of the shipped default model in scripted interaction scenarios.
+"""Behaviour targets of the shipped default model with the runtime's defaults (FWSR, test-time control and
+planted-foot cleanup on), on the first 8 episodes of each family of the behaviour suite's val generator.
 
-alpha = 0 (prior only) is the contrast that shows the Meta-Interaction Modules do the work.
+The whole suite (48 episodes a family, val and test splits) is `python -m model_runtime.evaluate --behaviour`;
+README lists every target and what it measures. Only targets the model meets are asserted here; the ones it
+still misses are listed in README as missed, not hidden behind an expected failure.
 """
-import math
+from __future__ import annotations
 
 import pytest
 
 from model_runtime import load_model
+from model_runtime.behaviour.suite import run_suite
 from model_runtime.checkpoint import DEFAULT_WEIGHTS
-from model_runtime.evaluate import box_scenario, partner_scenario
 
 pytestmark = pytest.mark.skipif(not DEFAULT_WEIGHTS.exists(), reason="no shipped default weights")
 
-# Two scripted scenes on fixed seeds, kept as regression guards for what the shipped weights do there: turning
-# to face a partner who walks up from the side, and passing a box on the way to a goal without entering it.
-# Whether behaviour holds over whole distributions of scenes (including stopping at a goal, which the shipped
-# weights do not yet do) is measured by the behaviour suite (model_runtime.behaviour), not here.
-
-# the partner walks 3 m at 1.2 m/s (2.5 s) and stops at 1 m; we look one second of model time later
-PARTNER_FRAMES = 25 + 10
-BOX_FRAMES = 60
+EPISODES = 8
+# A reach rate of >= 90 % on 8 episodes means none may miss; 24 give the rate a resolution of about 4 %.
+REACH_EPISODES = 24
 
 
 @pytest.fixture(scope="module")
@@ -27,24 +25,41 @@ def model():
     return load_model()
 
 
-def test_ego_turns_to_face_an_approaching_partner(model):
-    yaws = (math.pi / 2, -math.pi / 2)   # the ego starts side-on to the partner
-    on, _ = partner_scenario(model, PARTNER_FRAMES, {"hhi": 1.0, "hsi": 0.0}, seeds=(0, 1), yaws=yaws)
-    off, _ = partner_scenario(model, PARTNER_FRAMES, {"hhi": 0.0, "hsi": 0.0}, seeds=(0, 1), yaws=yaws)
-    assert on["facing_error_deg"] < 30.0, on
-    assert on["min_clearance_m"] > 0.3, on
-    assert off["facing_error_deg"] > on["facing_error_deg"] + 20.0, (on, off)
+def family(model, name: str, alphas=(1.0,), episodes: int = EPISODES) -> dict:
+    report = run_suite(model, "val", families=(name,), episodes=episodes, alphas=alphas, keep_tracks=0)
+    return report["families"][name]
 
 
-@pytest.fixture(scope="module")
-def box_runs(model):
-    return (box_scenario(model, BOX_FRAMES, {"hhi": 0.0, "hsi": 1.0}, seeds=(0, 1)),
-            box_scenario(model, BOX_FRAMES, {"hhi": 0.0, "hsi": 0.0}, seeds=(0, 1)))
+def test_goal_in_any_direction_is_reached_and_the_ego_stops_there(model):
+    s = family(model, "goal", alphas=(0.0, 1.0), episodes=REACH_EPISODES)
+    on, off = s["alpha=1"], s["alpha=0"]
+    assert on["reach_percent"] >= 90.0, on
+    assert on["settle_mean_m"] <= 0.3, on
+    assert off["reach_percent"] < on["reach_percent"] - 30.0, (on, off)
+    assert on["seam_ratio"] <= 1.3, on
 
 
-def test_ego_reaches_a_goal_around_a_box(box_runs):
-    """The ego passes within 0.5 m of the goal without entering the box; prior-only walks through it."""
-    on, off = box_runs
-    assert on["collision_percent"] == 0.0, on
-    assert on["goal_closest_m"] < 0.5, on
-    assert off["collision_percent"] > 0, off
+def test_goal_past_obstacles_is_reached(model):
+    on = family(model, "obstacles", episodes=REACH_EPISODES)["alpha=1"]
+    assert on["reach_percent"] >= 90.0, on
+    assert on["settle_mean_m"] <= 0.3, on
+    assert on["seam_ratio"] <= 1.3, on
+
+
+def test_partner_crossing_clearance_is_better_with_the_partner_module(model):
+    s = family(model, "crossing", alphas=(0.0, 1.0))
+    on, off = s["alpha=1"], s["alpha=0"]
+    assert on["percent_under_10cm"] < off["percent_under_10cm"], (on, off)
+    assert on["min_clearance_mean_m"] > off["min_clearance_mean_m"] + 0.1, (on, off)
+
+
+def test_approach_from_any_direction_ends_facing_the_partner(model):
+    on = family(model, "approach")["alpha=1"]
+    assert on["facing_error_mean_deg"] <= 30.0, on
+    assert on["percent_within_45deg"] >= 85.0, on
+    assert on["min_clearance_min_m"] >= 0.2, on
+
+
+def test_walking_forward_joins_its_segments_without_a_pop(model):
+    on = family(model, "walk_forward")["alpha=1"]
+    assert on["seam_ratio"] <= 1.3, on
