@@ -46,8 +46,6 @@ class ControlConfig:
     pass_length: float = 1.0        # m: ... while within this distance of it along the relative motion
     pass_weight: float = 20.0
     pass_speed: float = 0.3         # m/s: an ego or a relative motion slower than this passes no one
-    pass_step_size: float = 6.0     # latent units per steered step of a segment that passes someone: the
-    #                                 segment that sees a partner coming is the only one left to step aside in
     face_weight: float = 10.0       # turning toward a partner standing within face_radius
     face_radius: float = 2.5        # m
     look_ahead: int = 8             # partner frames past a segment's end its last pose must keep clear of
@@ -110,8 +108,9 @@ def facing_cost(joints: torch.Tensor, target_xy: torch.Tensor) -> torch.Tensor:
 
 def scene_cost(world_joints: torch.Tensor, field: DistanceField, margin: float) -> torch.Tensor:
     """Joints closer than `margin` to an obstacle (or inside one): sum of squared shortfalls.
-    world_joints (..., T, 22, 3); one cost per leading index."""
-    return torch.relu(margin - field(world_joints)).pow(2).sum((-2, -1))
+    world_joints (T, 22, 3) or any points (..., 3): one cost; (B, T, 22, 3): one per segment."""
+    short = torch.relu(margin - field(world_joints)).pow(2)
+    return short.sum((-2, -1)) if short.dim() > 2 else short.sum()
 
 
 def goal_cost(pelvis: torch.Tensor, start_xy: torch.Tensor, goal_xy: torch.Tensor,
@@ -173,21 +172,23 @@ def passing_away(own: np.ndarray, other: np.ndarray, before: np.ndarray | None,
                  cfg: ControlConfig) -> np.ndarray | None:
     """The world direction (unit xy) in which to pass another character, or None when not passing anyone.
 
-    own, other (2, 2): the latest two pelvis positions (xy) of the ego and of the other. Only a walking ego
-    starts a pass: standing, it faces whoever comes (the partner cost still keeps its joints clear). A pass starts on the
-    side of their relative motion the ego is on, or with the other on its left ("keep right") when that is
-    not clear yet (the offset a few metres ahead is within the noise of the walking direction), and keeps
+    own, other (N, 2), N >= 2: the latest pelvis positions (xy, oldest first, one a frame) of the ego and of
+    the other; their velocities are taken over all N, steadier than a step. Only a walking ego starts a
+    pass: standing, it faces whoever comes (the partner cost still keeps its joints clear). A pass starts on
+    the side of their relative motion the ego is on, or with the other on its left ("keep right") when that
+    is not clear yet (the offset a few metres ahead is within the noise of the walking direction), and keeps
     that side (`before`, its direction so far) until the two have passed each other. Two egos passing each
     other see each other's inputs mirrored, so they choose opposite sides: they move apart.
     """
-    own_v = own[1] - own[0]
-    rel_v = own_v - (other[1] - other[0])
+    frames = len(own) - 1
+    own_v = (own[-1] - own[0]) / frames
+    rel_v = own_v - (other[-1] - other[0]) / frames
     speed = float(np.hypot(rel_v[0], rel_v[1]))
     if speed * FPS < cfg.pass_speed or (before is None and float(np.hypot(own_v[0], own_v[1])) * FPS < cfg.pass_speed):
         return None                    # walking alongside is no pass; a standing ego lets others come to it
     along = rel_v / speed
     left = np.array([-along[1], along[0]])
-    rel = own[1] - other[1]
+    rel = own[-1] - other[-1]
     lon, lat = float(rel @ along), float(rel @ left)
     if lon > cfg.pass_length:          # moving apart and clear of each other: the pass is over
         return None
@@ -256,7 +257,6 @@ class SegmentCosts:
         segment's start, the seam is costed too, and each segment after its first frames is kept close to it."""
         self.stats, self.cfg = stats, cfg
         self.keep = keep.unsqueeze(0) if keep is not None and keep.dim() == 3 else keep
-        self.passing = torch.zeros(hist_n.shape[0], dtype=torch.bool)   # rows passing a partner
         hist = stats.denormalize(hist_n)
         self.before_joints = feature_joints(hist[:, -1])
         self.before_xy = hist[:, -1, ROOT_T][:, :2]
@@ -271,7 +271,6 @@ class SegmentCosts:
             self.passes = _Rows([ts[i].pass_away is not None for i in p.rows])
             if self.passes.any:
                 self.away = torch.stack([ts[p.rows[k]].pass_away for k in self.passes.rows])
-                self.passing[[p.rows[k] for k in self.passes.rows]] = True
         s = self.scene = _Rows([t.alpha_hsi > 0.0 for t in ts])
         if s.any:
             on = [ts[i] for i in s.rows]
@@ -334,10 +333,8 @@ class LatentSteer:
 
     def __init__(self, model, hist_n: torch.Tensor, costs: SegmentCosts, cfg: ControlConfig,
                  step_size: float | None = None) -> None:
-        """step_size: the longest step of every row (default: cfg.step_size, or cfg.pass_step_size for a row
-        passing someone)."""
         self.model, self.costs, self.cfg, self.hist = model, costs, cfg, hist_n
-        self.step_size = step_size
+        self.step_size = cfg.step_size if step_size is None else step_size
 
     def __call__(self, x0: torch.Tensor) -> torch.Tensor:
         with torch.enable_grad():
@@ -348,23 +345,19 @@ class LatentSteer:
             if not cost.requires_grad or not bool(rows.any()):
                 return x0      # nothing to correct: skip the backward pass (most of a steering step's time)
             (grad,) = torch.autograd.grad(cost.sum() if bool(rows.all()) else cost[rows].sum(), z)
-        cfg = self.cfg
-        steps = [self.step_size if self.step_size is not None else cfg.pass_step_size if bool(passing) else
-                 cfg.step_size for passing in self.costs.passing]
         if x0.shape[0] == 1:
-            return self._moved(x0, grad, steps[0])
+            return self._moved(x0, grad)
         norm = grad.flatten(1).norm(dim=1)
         move = rows & torch.isfinite(norm) & (norm > 0.0)
-        step = torch.tensor(steps)
-        scale = step * torch.clamp(cfg.max_gradient / norm, max=1.0)
+        scale = self.step_size * torch.clamp(self.cfg.max_gradient / norm, max=1.0)
         return torch.where(move.view(-1, 1, 1), x0 - scale.view(-1, 1, 1) * grad, x0).detach()
 
-    def _moved(self, x0: torch.Tensor, grad: torch.Tensor, step: float) -> torch.Tensor:
-        """One bounded step of length up to `step` down `grad`; x0 itself when the gradient is useless."""
+    def _moved(self, x0: torch.Tensor, grad: torch.Tensor) -> torch.Tensor:
+        """One bounded step down `grad`; x0 itself when the gradient is useless."""
         norm = float(grad.norm())
         if not np.isfinite(norm) or norm == 0.0:
             return x0
-        scale = step * min(1.0, self.cfg.max_gradient / norm)
+        scale = self.step_size * min(1.0, self.cfg.max_gradient / norm)
         return (x0 - scale * grad).detach()
 
 

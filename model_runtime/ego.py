@@ -86,6 +86,9 @@ def as_transform(rot: torch.Tensor, trans: torch.Tensor) -> np.ndarray:
     return m
 
 
+PASS_FRAMES = 4    # the latest frames whose motion tells whether, and how, the ego is passing someone
+
+
 class Ego:
     """One ego: settings that may change between steps, and the state its rollout carries from step to step."""
 
@@ -244,13 +247,14 @@ class Ego:
     def pass_away(self, cc: ControlConfig) -> np.ndarray | None:
         """Which way to keep clear of the character it reacts to, if passing it (world xy); remembered per
         character so the side does not flip while passing."""
-        other = self.cue[-2:]
-        if len(other) < 2 or other[0] is None or other[1] is None:
+        n = min(PASS_FRAMES, len(self.cue), len(self.trail))
+        other = self.cue[-n:]
+        if n < 2 or any(p is None for p in other):
             self.passing = None
             return None
-        own = np.stack([self.trail[-2][0, :2], self.trail[-1][0, :2]]).astype(np.float64)
+        own = np.stack([j[0, :2] for j in list(self.trail)[-n:]]).astype(np.float64)
         before = self.passing[1] if self.passing is not None and self.passing[0] == self.cue_id else None
-        away = passing_away(own, np.stack([other[0][0, :2], other[1][0, :2]]).astype(np.float64), before, cc)
+        away = passing_away(own, np.stack([j[0, :2] for j in other]).astype(np.float64), before, cc)
         self.passing = None if away is None else (self.cue_id, away)
         return away
 
@@ -265,10 +269,13 @@ class Ego:
         return world_points_to_canonical(torch.as_tensor(self.goal).view(1, 1, 3), rot, trans)[:, 0]
 
     def control_targets(self, rot: torch.Tensor, trans: torch.Tensor, lead: int,
-                        field: Callable[[], DistanceField] | None, cc: ControlConfig) -> ControlTargets:
+                        field: Callable[[], DistanceField] | None, cc: ControlConfig,
+                        alpha: dict[str, float] | None = None) -> ControlTargets:
         """Test-time control of one job: its costs' targets in the job's canonical frame. `field` gives the
-        scene's distance field (built on first use), None without a scene."""
-        targets = ControlTargets(alpha_hhi=self._alpha["hhi"], alpha_hsi=self._alpha["hsi"])
+        scene's distance field (built on first use), None without a scene; `alpha` the alphas to steer with
+        (default: the current ones)."""
+        alpha = self._alpha if alpha is None else alpha
+        targets = ControlTargets(alpha_hhi=alpha["hhi"], alpha_hsi=alpha["hsi"])
         if targets.alpha_hhi > 0.0:
             window, present = self.cue_window(rot, trans, self.cfg.partner_window)
             targets.partner, targets.partner_still = partner_future(window[0], present[0], lead + 1,

@@ -113,7 +113,7 @@ class ReactionGroup:
     def _per_ego(self, name: str, values: Sequence | None, default: Any) -> list:
         if values is None:
             return [default] * len(self.egos)
-        if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or len(values) != len(self.egos):
+        if isinstance(values, (str, bytes)) or not hasattr(values, "__len__") or len(values) != len(self.egos):
             raise InputError(f"{name} must hold one entry per ego ({len(self.egos)}), or be None")
         return list(values)
 
@@ -194,7 +194,7 @@ class ReactionGroup:
         seg, cfg = self._seg, self.cfg
         if seg is None or seg["f"] >= cfg.future:
             job = self._finish_job()
-            seg = self._seg = self._start_segment(job.result)
+            seg = self._seg = self._start_segment(job)
             predicted = [to_world(self.model.stats.denormalize(seg["future"][i, -cfg.history:]),
                                   e.seg["rot"], e.seg["trans"]) for i, e in enumerate(self.egos)]
             self._job = self._new_job(predicted, lead=cfg.future)
@@ -220,13 +220,15 @@ class ReactionGroup:
 
     def _steer_playing(self, f: int) -> None:
         """An ego passing someone also steers the segment it is playing, a step each frame with the latest cue:
-        the segment that sees the other coming is otherwise decided a segment ahead, too late to step aside."""
+        the segment that sees the other coming is otherwise decided a segment ahead, too late to step aside.
+        With the alphas the segment was made with: a slider moved since acts from the next segment on."""
         seg, cc = self._seg, self._control_config
         field = self._distance_field if self._scene is not None else None
         rows, targets = [], []
         for i, e in enumerate(self.egos):
-            if e.alpha["hhi"] > 0.0 and e.pass_away(cc) is not None:
-                t = e.control_targets(e.seg["rot"], e.seg["trans"], -f, field, cc)
+            alpha = e.seg["alpha"]
+            if alpha["hhi"] > 0.0 and e.pass_away(cc) is not None:
+                t = e.control_targets(e.seg["rot"], e.seg["trans"], -f, field, cc, alpha)
                 if t.pass_away is not None:
                     rows.append(i)
                     targets.append(t)
@@ -269,12 +271,14 @@ class ReactionGroup:
     def _slide_frames(self) -> list[torch.Tensor]:
         job = self._new_job([e.hist_world for e in self.egos], lead=0)
         job.advance(job.total_steps)
-        seg = self._start_segment(job.result)
+        seg = self._start_segment(job)
         return [to_world(self.model.stats.denormalize(seg["future"][i, :1]), e.seg["rot"], e.seg["trans"])[0]
                 for i, e in enumerate(self.egos)]
 
-    def _start_segment(self, z0: torch.Tensor) -> dict:
-        """Decode the finished latents with each ego's real history in its own canonical frame."""
+    def _start_segment(self, job: DiffusionJob) -> dict:
+        """Decode a finished job's latents with each ego's real history in its own canonical frame. The
+        segment's steering, here and while it plays, uses the alphas the job was made with."""
+        z0 = job.result
         canon = [e.canonical_history(e.hist_world) for e in self.egos]
         hist_n = torch.cat([c[2] for c in canon])
         cc = self._control_config
@@ -282,11 +286,11 @@ class ReactionGroup:
             # the latent was made for a predicted history: join it to the real one without a jump, still
             # under the same costs (its first frame plays now)
             made = feature_joints(self.model.stats.denormalize(self.model.decode(hist_n, z0)))
-            steer = self._steer(hist_n, canon, lead=0, keep=made, step_size=cc.seam_step_size)
+            steer = self._steer(hist_n, canon, lead=0, keep=made, step_size=cc.seam_step_size, alphas=job.alpha)
             for _ in range(cc.seam_steers):
                 z0 = steer(z0)
-        for e, (rot, trans, h) in zip(self.egos, canon):
-            e.seg = {"rot": rot, "trans": trans, "emitted": h[0]}
+        for e, (rot, trans, h), alpha in zip(self.egos, canon, job.alpha):
+            e.seg = {"rot": rot, "trans": trans, "emitted": h[0], "alpha": alpha}
         return {"hist_n": hist_n, "z0": z0, "future": self.model.decode(hist_n, z0), "f": 0}
 
     def _new_job(self, hist_worlds: list[torch.Tensor], lead: int) -> DiffusionJob:
@@ -303,12 +307,14 @@ class ReactionGroup:
                             steer=steer, steered_steps=cc.steered_steps, final_steers=cc.final_steers)
 
     def _steer(self, hist_n: torch.Tensor, canon: list[tuple], lead: int, keep: torch.Tensor | None = None,
-               step_size: float | None = None) -> LatentSteer:
+               step_size: float | None = None, alphas: list[dict] | None = None) -> LatentSteer:
         """Test-time control of a job (or of a boundary, with `keep`): each ego's cost targets in its canonical
-        frame."""
+        frame, with `alphas` (default: the egos' current ones)."""
         cc = self._control_config
         field = self._distance_field if self._scene is not None else None
-        targets = [e.control_targets(rot, trans, lead, field, cc) for e, (rot, trans, _) in zip(self.egos, canon)]
+        alphas = alphas if alphas is not None else [None] * len(self.egos)
+        targets = [e.control_targets(rot, trans, lead, field, cc, a)
+                   for e, (rot, trans, _), a in zip(self.egos, canon, alphas)]
         return LatentSteer(self.model, hist_n, SegmentCosts(self.model.stats, hist_n, targets, cc, keep=keep), cc,
                            step_size=step_size)
 

@@ -60,7 +60,7 @@ def test_an_armature_twice_in_the_ego_list_is_refused(fresh):
     st.egos[0].ego = st.ego
     with pytest.raises(RuntimeError) as err:
         bpy.ops.remogen.bake()
-    assert "is in the ego list twice" in str(err.value)
+    assert "is used twice among the egos" in str(err.value)
 
 
 def test_two_egos_bake_two_actions_deterministic_per_seed(fresh):
@@ -114,7 +114,7 @@ def test_live_poses_every_ego_and_puts_each_back(fresh):
     assert d["ego2"].animation_data.action is None           # held while Live poses it
     for f in range(2, 8):
         bpy.context.scene.frame_set(f)
-    assert live.is_running() and len(live.state().driver.egos) == 2
+    assert live.is_running() and len(live.state().driver.group.egos) == 2
     moved = [scenes.ego_pose(d["ego"]), scenes.ego_pose(d["ego2"])]
     assert all(np.abs(m - b).max() > 1e-4 for m, b in zip(moved, before))
     live.stop()
