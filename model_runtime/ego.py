@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from .checks import check_alpha, check_guidance, check_point, check_seed, check_text
-from .control import ControlConfig, ControlTargets, partner_future, passing_away
+from .control import ControlConfig, ControlTargets, partner_future, passing_away, passing_reaches
 from .distance_field import DistanceField
 from .errors import MAX_COORD, InputError
 from .features import (ROOT_T, ROT6D, canonical_frame, feature_joints, features_from_pose, to_canonical,
@@ -244,19 +244,30 @@ class Ego:
                 pts[0, i] = world_points_to_canonical(torch.from_numpy(p), rot, trans)
         return pts, present
 
-    def pass_away(self, cc: ControlConfig) -> np.ndarray | None:
-        """Which way to keep clear of the character it reacts to, if passing it (world xy); remembered per
-        character so the side does not flip while passing."""
+    def _paths(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The latest pelvis positions (xy) of the ego and of the character it reacts to, oldest first; None
+        while that one is not seen in each of them."""
         n = min(PASS_FRAMES, len(self.cue), len(self.trail))
         other = self.cue[-n:]
         if n < 2 or any(p is None for p in other):
-            self.passing = None
             return None
         own = np.stack([j[0, :2] for j in list(self.trail)[-n:]]).astype(np.float64)
+        return own, np.stack([j[0, :2] for j in other]).astype(np.float64)
+
+    def pass_away(self, cc: ControlConfig) -> np.ndarray | None:
+        """Which way to keep clear of the character it reacts to, if passing it (world xy); remembered per
+        character so the side does not flip while passing."""
+        paths = self._paths()
         before = self.passing[1] if self.passing is not None and self.passing[0] == self.cue_id else None
-        away = passing_away(own, np.stack([j[0, :2] for j in other]).astype(np.float64), before, cc)
+        away = None if paths is None else passing_away(*paths, before, cc)
         self.passing = None if away is None else (self.cue_id, away)
         return away
+
+    def passing_reaches(self, cc: ControlConfig, first: int, last: int) -> bool:
+        """Whether its pass (pass_away first) asks anything of the frames first..last from now."""
+        paths = self._paths()
+        return self.passing is not None and paths is not None and passing_reaches(*paths, self.passing[1], first,
+                                                                                   last, cc)
 
     def occupancy(self, scene: Any, rot: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
         occ = scene.sample_ego(as_transform(rot, trans), bounds=self.cfg.scene_bounds,

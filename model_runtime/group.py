@@ -225,9 +225,10 @@ class ReactionGroup:
         seg, cc = self._seg, self._control_config
         field = self._distance_field if self._scene is not None else None
         rows, targets = [], []
+        last = self.cfg.future - 1 + int(cc.look_ahead) - f      # the segment's frames to play and its look-ahead
         for i, e in enumerate(self.egos):
             alpha = e.seg["alpha"]
-            if alpha["hhi"] > 0.0 and e.pass_away(cc) is not None:
+            if alpha["hhi"] > 0.0 and e.pass_away(cc) is not None and e.passing_reaches(cc, 0, last):
                 t = e.control_targets(e.seg["rot"], e.seg["trans"], -f, field, cc, alpha)
                 if t.pass_away is not None:
                     rows.append(i)
@@ -236,10 +237,14 @@ class ReactionGroup:
             return
         hist_n = seg["hist_n"][rows]
         steer = LatentSteer(self.model, hist_n, SegmentCosts(self.model.stats, hist_n, targets, cc), cc)
-        z0, future = seg["z0"].clone(), seg["future"].clone()
+        z0 = seg["z0"].clone()
         z0[rows] = steer(seg["z0"][rows])
-        future[rows] = self.model.decode(hist_n, z0[rows])
-        seg["z0"], seg["future"] = z0, future
+        seg["z0"] = z0
+        plain = [i for i in rows if not self.egos[i].fwsr]    # FWSR decodes the steered latent itself
+        if plain:
+            future = seg["future"].clone()
+            future[plain] = self.model.decode(seg["hist_n"][plain], z0[plain])
+            seg["future"] = future
 
     def _refine(self, rows: list[int], f: int) -> list[torch.Tensor]:
         """FWSR for frame f of the segment, for the egos in `rows`: their normalised canonical features."""
