@@ -10,7 +10,11 @@ The costs, on the decoded segment in the job's canonical frame (metres):
   recent velocity to the times the segment plays; and turning to face a partner who stands close by;
 - scene: ego joints closer than `scene_margin` to an obstacle, from a distance field built once per grid;
 - goal: progress toward the goal at a walking pace and facing it while far, coming to rest on it when near;
-- feet: toe sliding while near the floor, and joints below the floor.
+- feet: toe sliding while near the floor, and joints below the floor;
+- passing (between egos of a group): a walking ego passing another keeps `pass_clearance` aside on a side
+  both choose alike (the one each is on, else keep right), so that two egos walking at each other move
+  apart instead of into each other's way (a body's joints alone push back evenly on both sides).
+Every cost takes a batch of segments (a group of egos), one row each, and gives one cost per row.
 alpha_HHI scales the partner cost and alpha_HSI the scene and goal costs, so the sliders keep their
 meaning and alpha 0 ignores the partner or the scene; the foot and floor costs belong to the motion itself
 and apply at any alpha. Nothing here draws random numbers: the same seed still gives the same frames.
@@ -42,7 +46,7 @@ class ControlConfig:
     negligible_cost: float = 1e-4   # a segment costing less is left as it is
     partner_margin: float = 0.5     # m: joint-to-joint distance the partner cost keeps
     partner_weight: float = 200.0
-    pass_clearance: float = 0.7     # m: sideways pelvis offset kept from a partner while passing it ...
+    pass_clearance: float = 0.7     # m: sideways pelvis offset kept from another ego while passing it ...
     pass_length: float = 1.0        # m: ... while within this distance of it along the relative motion
     pass_weight: float = 20.0
     pass_speed: float = 0.3         # m/s: an ego or a relative motion slower than this passes no one

@@ -256,8 +256,10 @@ class Ego:
 
     def pass_away(self, cc: ControlConfig) -> np.ndarray | None:
         """Which way to keep clear of the character it reacts to, if passing it (world xy); remembered per
-        character so the side does not flip while passing."""
-        paths = self._paths()
+        character so the side does not flip while passing. Only another ego is passed this way: two egos
+        follow the same convention, so their choices fit together; the partner follows its own animation
+        (the partner cost alone keeps the ego clear of it, as for a single ego)."""
+        paths = self._paths() if self.cue_id >= 0 else None
         before = self.passing[1] if self.passing is not None and self.passing[0] == self.cue_id else None
         away = None if paths is None else passing_away(*paths, before, cc)
         self.passing = None if away is None else (self.cue_id, away)

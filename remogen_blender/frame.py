@@ -129,7 +129,8 @@ class FrameDriver:
             self.target.follow(root, yaw)
         self._applied = self._all_settings(st)
         self.scene_cache = SceneCache()
-        self.frames: deque = deque(maxlen=keep_frames)   # per model frame the EgoFrame of each ego, newest last
+        self.frames: deque = deque(maxlen=keep_frames)   # the first ego's EgoFrames, newest last
+        self.other_frames: deque = deque(maxlen=keep_frames)   # per model frame, the other egos' EgoFrames
         self.contact_starts: deque = deque(maxlen=keep_frames)   # per frame: (left, right) contact_start
         self._toes: dict[int, np.ndarray] = {}            # model frame -> target's (2, 3) world toes there
         self.first_index = 0                              # model index of frames[0]
@@ -241,8 +242,9 @@ class FrameDriver:
         goal = self._goal(st, depsgraph)
         self.group.scene = self.scene_cache.grid(st.scene_collection, depsgraph)
         frames = self._model_step(partner, goal)
-        self.frames.append(frames)
         frame = frames[0]
+        self.frames.append(frame)
+        self.other_frames.append(frames[1:])
         prev = self.contact_starts[-1] if self.contact_starts else (-1, -1)
         self.contact_starts.append(tuple((prev[s] if prev[s] >= 0 else frame.index) if frame.contacts[s] else -1
                                          for s in range(2)))
@@ -271,7 +273,7 @@ class FrameDriver:
 
     @property
     def latest_index(self) -> int:
-        return self.frames[-1][0].index if self.frames else -1
+        return self.frames[-1].index if self.frames else -1
 
     def pose_at(self, model_time: float, ego: int = 0) -> Pose:
         """The pose of one ego (0: the first) at one model time already generated (live and frame-change;
@@ -292,14 +294,15 @@ class FrameDriver:
         hi = np.clip(k0 + 1 - self.first_index, 0, len(self.frames) - 1)
         a = np.where((hi == lo) | (a <= _EPS), 0.0, a)
         need, where = np.unique(np.concatenate((lo, hi)), return_inverse=True)   # stack only these frames
-        pel = np.stack([self.frames[i][ego].root[:3, 3] for i in need]).astype(np.float64)
-        rot = np.stack([self.frames[i][ego].local_rotations for i in need]).astype(np.float64)
+        egos = [self.frames[i] if ego == 0 else self.other_frames[i][ego - 1] for i in need]
+        pel = np.stack([f.root[:3, 3] for f in egos]).astype(np.float64)
+        rot = np.stack([f.local_rotations for f in egos]).astype(np.float64)
         i0, i1 = where[:len(lo)], where[len(lo):]
         p = (1.0 - a)[:, None] * pel[i0] + a[:, None] * pel[i1]
         q = _RT.qslerp(rot[i0], rot[i1], a[:, None, None])
-        con = np.stack([self.frames[i][0].contacts for i in need]).astype(np.float64)
+        con = np.stack([self.frames[i].contacts for i in need]).astype(np.float64)
         began = np.array([self.contact_starts[i] for i in need], dtype=np.int64)
-        index = np.array([self.frames[i][0].index for i in need], dtype=np.int64)
+        index = np.array([self.frames[i].index for i in need], dtype=np.int64)
         planted = con[i0] * (1.0 - a[:, None] * (1.0 - con[i1]))
         return Pose(p, q, index[i0], planted, began[i0])
 
