@@ -51,22 +51,28 @@ class EgoSettings:
     cleanup: bool = True
 
 
-def frame_from_world_features(index: int, feat_world: torch.Tensor, feet: FootLock) -> EgoFrame:
-    """The EgoFrame of one generated frame; `feet` marks planted feet and, when it locks, pins them."""
+def frames_from_world_features(index: int, feat_world: torch.Tensor, feet: list[FootLock]) -> list[EgoFrame]:
+    """The EgoFrames of one generated frame of each ego (feat_world (B, 276)); `feet[i]` marks ego i's planted
+    feet and, when it locks, pins them. The skeleton maths runs once for all egos."""
     f = feat_world.numpy()
-    rot = rot6d_to_matrix_np(f[ROT6D].reshape(NUM_JOINTS, 6))
-    pelvis = f[ROOT_T]
+    rot = rot6d_to_matrix_np(f[:, ROT6D].reshape(-1, NUM_JOINTS, 6))
+    pelvis = f[:, ROOT_T]
     joints, world = forward_kinematics_np(rot, pelvis, world_rotations=True)
-    if np.isfinite(joints).all():
-        cleaned, contacts = feet.apply(rot, joints, world)
-        if cleaned is not rot:                  # a leg was solved: the joints follow the new rotations
-            rot = cleaned
-            joints = forward_kinematics_np(rot, pelvis)
-    else:
-        contacts = np.zeros(2, bool)    # reported as a model output problem by the caller
-    root = np.eye(4, dtype=np.float32)
-    root[:3, :3], root[:3, 3] = rot[0], pelvis
-    return EgoFrame(index, joints.astype(np.float32), root, matrix_to_quat_np(rot).astype(np.float32), contacts)
+    contacts = np.zeros((len(f), 2), bool)
+    for i, lock in enumerate(feet):
+        mine = rot[i]
+        if np.isfinite(joints[i]).all():      # else reported as a model output problem by the caller
+            cleaned, contacts[i] = lock.apply(mine, joints[i], world[i])
+            if cleaned is not mine:           # a leg was solved: the joints follow the new rotations
+                rot[i] = cleaned
+                joints[i] = forward_kinematics_np(cleaned, pelvis[i])
+    quats = matrix_to_quat_np(rot).astype(np.float32)
+    out = []
+    for i in range(len(f)):
+        root = np.eye(4, dtype=np.float32)
+        root[:3, :3], root[:3, 3] = rot[i, 0], pelvis[i]
+        out.append(EgoFrame(index, joints[i].astype(np.float32), root, quats[i], contacts[i]))
+    return out
 
 
 def output_problem(feat_world: torch.Tensor, frame: EgoFrame) -> str | None:
@@ -214,11 +220,9 @@ class Ego:
         self.hist_world = torch.cat((self.hist_world[1:], feat_world.unsqueeze(0)), 0)
         self.trail.append(frame.joints)
 
-    def emit(self, index: int, feat_world: torch.Tensor) -> tuple[EgoFrame, str | None]:
-        """The frame of generated world features, and what is wrong with it (None when nothing)."""
-        with np.errstate(over="ignore", invalid="ignore"):   # a broken frame is reported by the caller
-            out = frame_from_world_features(index, feat_world, self._feet)
-        return out, output_problem(feat_world, out)
+    @property
+    def feet(self) -> FootLock:
+        return self._feet
 
     # ------------------------------------------------------------------ per-ego inputs of the networks
     def pelvis(self) -> np.ndarray:

@@ -36,7 +36,7 @@ import torch
 from .checks import check_control_config, check_partner, check_point, check_scene
 from .control import ControlConfig, LatentSteer, SegmentCosts
 from .distance_field import DistanceField
-from .ego import Ego, EgoFrame, EgoSettings
+from .ego import Ego, EgoFrame, EgoSettings, frames_from_world_features, output_problem
 from .errors import InputError, ModelOutputError
 from .features import feature_joints, to_world
 from .model import Contexts, DiffusionJob, ReMoGenModel, non_finite_weight
@@ -136,12 +136,12 @@ class ReactionGroup:
             for e, g, (who, cue) in zip(self.egos, targets, cues):
                 e.goal, e.cue_id, e.cue = g, who, cue
             feats = self._slide_frames() if self.slide else self._segment_frames()
-            out = []
-            for i, (e, feat) in enumerate(zip(self.egos, feats)):
-                frame, problem = e.emit(self._index, feat)
+            with np.errstate(over="ignore", invalid="ignore"):   # a broken frame is reported just below
+                out = frames_from_world_features(self._index, torch.stack(feats), [e.feet for e in self.egos])
+            for i, (feat, frame) in enumerate(zip(feats, out)):
+                problem = output_problem(feat, frame)
                 if problem:
                     raise ModelOutputError(self._output_error(i, problem))
-                out.append(frame)
         except BaseException:   # also KeyboardInterrupt: a half-done step must not stay behind
             self._restore(before)
             raise
