@@ -218,7 +218,7 @@ class Ego:
     def commit(self, feat_world: torch.Tensor, frame: EgoFrame) -> None:
         """A step succeeded: its frame joins the history (and the trail the other egos see)."""
         self.hist_world = torch.cat((self.hist_world[1:], feat_world.unsqueeze(0)), 0)
-        self.trail.append(frame.joints)
+        self.trail.append(frame.joints.copy())   # the frame is the caller's to change
 
     @property
     def feet(self) -> FootLock:
