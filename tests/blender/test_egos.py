@@ -130,3 +130,21 @@ def test_live_stops_when_the_ego_list_changes(fresh):
     bpy.context.scene.remogen.egos.remove(0)
     bpy.context.scene.frame_set(4)
     assert not live.is_running() and "ego list changed" in live.message()
+
+
+def test_one_ego_settings_and_the_ego_list_survive_save_and_load(fresh, tmp_path):
+    """The first ego's settings keep their names on scene.remogen (a file with one ego loads as before, with an
+    empty ego list); the list's entries are saved with their own settings."""
+    _two_egos()
+    st = bpy.context.scene.remogen
+    st.text, st.seed, st.alpha_hhi = "wave", 9, 0.25
+    st.egos[0].text, st.egos[0].seed, st.egos[0].use_fwsr = "a person runs", 4, False
+    ego2 = st.egos[0].ego.name
+    path = str(tmp_path / "egos.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    st = bpy.context.scene.remogen
+    assert (st.text, st.seed, st.alpha_hhi) == ("wave", 9, 0.25) and st.ego is not None
+    item = st.egos[0]
+    assert (len(st.egos), item.text, item.seed, item.use_fwsr, item.ego.name) == (1, "a person runs", 4, False, ego2)
