@@ -132,7 +132,7 @@ def goal_cost(pelvis: torch.Tensor, start_xy: torch.Tensor, goal_xy: torch.Tenso
         steps = (path[..., 1:, :] - path[..., :-1, :]).pow(2).sum((-2, -1))
         return cfg.rest_weight * (steps + end.pow(2))
 
-    return _plus_where(cost, start < cfg.rest_radius, rest)
+    return _plus_where(cost, (start < cfg.rest_radius).reshape(-1).tolist(), rest)
 
 
 def seam_cost(joints: torch.Tensor, before: torch.Tensor, earlier: torch.Tensor) -> torch.Tensor:
@@ -218,12 +218,15 @@ def passing_reaches(own: np.ndarray, other: np.ndarray, away: np.ndarray, first:
     return bool(ends.min() < cfg.pass_length and ends.max() > -cfg.pass_length)
 
 
-def _plus_where(cost: torch.Tensor, mask: torch.Tensor, term) -> torch.Tensor:
+def _plus_where(cost: torch.Tensor, mask: list[bool], term) -> torch.Tensor:
     """cost + term() on the rows of `mask`: the plain sum when every row takes it, cost itself when none."""
-    if not bool(mask.any()):
+    if not any(mask):
         return cost
     extra = term()
-    return cost + (extra if bool(mask.all()) else torch.where(mask, extra, torch.zeros_like(extra)))
+    if all(mask):
+        return cost + extra
+    return cost + torch.where(torch.tensor(mask).view(extra.shape[:1] + (1,) * (extra.dim() - 1)), extra,
+                              torch.zeros_like(extra))
 
 
 def _held(x: torch.Tensor, frames: int) -> torch.Tensor:
@@ -284,7 +287,7 @@ class SegmentCosts:
         p = self.partner = _Rows([t.partner is not None and t.alpha_hhi > 0.0 for t in ts])
         if p.any:
             self.partner_future = torch.stack([ts[i].partner for i in p.rows])
-            self.still = torch.tensor([ts[i].partner_still for i in p.rows])
+            self.still = [bool(ts[i].partner_still) for i in p.rows]
             self.alpha_hhi = _weight([ts[i].alpha_hhi for i in p.rows])
             # passing rows among the partner rows
             self.passes = _Rows([ts[i].pass_away is not None for i in p.rows])
@@ -303,7 +306,7 @@ class SegmentCosts:
             if self.goal.any:
                 self.goal_xy = torch.stack([on[i].goal_xy for i in self.goal.rows])
                 start = self.goal.of(s.of(self.before_xy))
-                self.far = torch.linalg.vector_norm(self.goal_xy - start, dim=-1) > cfg.goal_face_distance
+                self.far = (torch.linalg.vector_norm(self.goal_xy - start, dim=-1) > cfg.goal_face_distance).tolist()
 
     def __call__(self, feat_n: torch.Tensor) -> torch.Tensor:
         feat = self.stats.denormalize(feat_n)
