@@ -103,14 +103,19 @@ def _clearance(model, alpha: float, seed: int, frames: int = 50) -> float:
     return closest
 
 
-@pytest.mark.parametrize("seed", [0, 1, 3])
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_two_egos_walking_toward_each_other_keep_clear(shipped_model, seed):
-    """alpha_HHI 1 (test-time control on, the default): at least 0.10 m between any two joints; alpha 0
-    ignores the other and comes closer. (Seed 2 keeps 0.19 m at alpha 1 but passes 0.186 m at alpha 0 as well,
-    too close a call for the second check.)"""
+    """alpha_HHI 1 (test-time control on, the default): at least 0.10 m between any two joints. Seed 2 walked
+    straight into the other (0.01 m) while only the joints' margin kept them apart: passing fixed that."""
     apart = _clearance(shipped_model, 1.0, seed)
-    ignoring = _clearance(shipped_model, 0.0, seed)
     assert apart >= 0.10, f"seed {seed}: {apart:.3f} m"
+
+
+@pytest.mark.parametrize("seed", [0, 1, 3])
+def test_two_egos_ignoring_each_other_come_closer(shipped_model, seed):
+    """alpha_HHI 0 ignores the other ego: they come closer than at alpha 1 (seed 2 passes 0.19 m apart either
+    way, too close a call to test)."""
+    ignoring, apart = _clearance(shipped_model, 0.0, seed), _clearance(shipped_model, 1.0, seed)
     assert ignoring < apart, f"seed {seed}: alpha 0 {ignoring:.3f} m, alpha 1 {apart:.3f} m"
 
 
