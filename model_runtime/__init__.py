@@ -1,13 +1,18 @@
 """ReMoGen runtime: a PyTorch implementation of ReMoGen (CVPR 2026) for online reaction generation.
 
 Public API:
-    from model_runtime import load_model, ReactionSession, EgoFrame, OccupancyGrid
+    from model_runtime import load_model, ReactionSession, ReactionGroup, EgoSettings, EgoFrame, OccupancyGrid
     model = load_model()                       # shipped weights; load_model(path) or load_model(config=...)
     s = ReactionSession(model, text="walk to the person and wave", seed=0,
                         alpha={"hhi": 1.0, "hsi": 1.0}, guidance=5.0, fwsr=True, scene=None)
     s.reset(root_position=(0, 0, 0), yaw=0.0)
     f = s.step(partner=joints_22x3_or_None, goal=xyz_or_None)
     s.text_warning                             # one line when the text cannot be read (prompt_warning(text))
+
+    # several egos stepped as one batch, each reacting to the nearest other character (partner or ego)
+    g = ReactionGroup(model, [EgoSettings(text="walk forward", seed=0), EgoSettings(text="wave", seed=1)])
+    g.reset(root_positions=[(0, 0, 0), (2, 0, 0)], yaws=[0.0, 0.0])
+    frames = g.step(partner=joints_22x3_or_None, goals=[None, xyz_or_None])   # one EgoFrame per ego
 
 Importing this package does not import PyTorch: the skeleton description (JOINT_NAMES, PARENTS,
 rest_joints_np), the bone maps, the NumPy quaternion maths, the error types and prompt_warning work
@@ -38,11 +43,12 @@ from .quat import continuous_quaternions, matrix_to_quat_np, qconj, qmul, qslerp
 _LAZY = {
     "load_model": ".checkpoint", "save_model": ".checkpoint",
     "ReactionSession": ".session", "EgoFrame": ".session",
+    "ReactionGroup": ".group", "EgoSettings": ".ego",
     "OccupancyGrid": ".voxel", "ControlConfig": ".control",
     "Motion": ".data.motion", "load_motion": ".data.motion",
 }
 
-__all__ = ["load_model", "save_model", "ReactionSession", "EgoFrame", "OccupancyGrid", "ModelConfig", "ControlConfig",
+__all__ = ["load_model", "save_model", "ReactionSession", "ReactionGroup", "EgoSettings", "EgoFrame", "OccupancyGrid", "ModelConfig", "ControlConfig",
            "RemogenError", "InputError", "ModelFileError", "ModelOutputError", "MAX_COORD", "MAX_GUIDANCE",
            "Motion", "load_motion", "prompt_warning",
            "WALK_CLIP", "JOINT_NAMES", "NUM_JOINTS", "PARENTS", "rest_joints_np", "standing_pelvis_height",

@@ -8,8 +8,10 @@ Modes: "segment" (segment rollout, diffusion spread over the running segment's f
 control), "fwsr-raw" (fwsr without control and without the planted-foot cleanup), "slide" (a full
 diffusion every frame, the paper's ablation). Every mode but those two has control and cleanup on, as the
 runtime does by default. Batch 1, after warm-up, with a partner walking in, a box scene and a goal,
-so both Meta-Interaction Modules run. Weights are random unless --model is given: speed does not
-depend on their values.
+so both Meta-Interaction Modules run. "groupN" (e.g. group8) times one live tick of N egos stepped as one
+ReactionGroup and, interleaved tick by tick in the same run, N separate ReactionSessions stepped one
+after another (row mode "separateN"); the group row also gives p50 and p99 of group / separate. Weights
+are random unless --model is given: speed does not depend on their values.
 """
 from __future__ import annotations
 
@@ -24,6 +26,8 @@ import torch
 from .checkpoint import load_model
 from .cli_help import HelpFormatter
 from .fixtures import BOX_GOAL, approaching_partner, box_scene
+from .ego import EgoSettings
+from .group import ReactionGroup
 from .session import ReactionSession
 
 BEST_THREADS = {"tiny": 1, "default": 1, "paper": 2}  # measured on a 2-core CPU
@@ -44,9 +48,51 @@ def run_case(model, mode: str, frames: int, warmup: int, scene) -> dict:
         dt = (time.perf_counter() - t0) * 1000.0
         if i >= warmup:
             times.append(dt)
+    return _percentiles(times)
+
+
+def _group_size(mode: str) -> int:
+    try:
+        n = int(mode[len("group"):])
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise SystemExit(f"bench: mode {mode!r} needs a number of egos, e.g. group8")
+    return n
+
+
+def _percentiles(times: list[float]) -> dict:
     a = np.asarray(times)
     return {"p50_ms": round(float(np.percentile(a, 50)), 3), "p99_ms": round(float(np.percentile(a, 99)), 3),
             "mean_ms": round(float(a.mean()), 3), "max_ms": round(float(a.max()), 3), "frames": len(a)}
+
+
+def run_group_case(model, egos: int, frames: int, warmup: int, scene) -> tuple[dict, dict]:
+    """Live ticks of `egos` egos in a row 1.2 m apart, the partner walking up to the middle: as one group,
+    and as separate sessions stepped one after another in the same ticks. Returns (group, separate)."""
+    text, alpha = "walk to the person and wave", {"hhi": 1.0, "hsi": 1.0}
+    xs = [(i - (egos - 1) / 2) * 1.2 for i in range(egos)]
+    goals = [(x, BOX_GOAL[1], 0.0) for x in xs]
+    group = ReactionGroup(model, [EgoSettings(text=text, seed=i, alpha=alpha) for i in range(egos)], scene=scene)
+    group.reset(root_positions=[(x, 0.0, 0.0) for x in xs], yaws=[0.0] * egos)
+    sessions = []
+    for i, x in enumerate(xs):
+        s = ReactionSession(model, text=text, seed=i, alpha=alpha, scene=scene)
+        s.reset(root_position=(x, 0.0, 0.0), yaw=0.0)
+        sessions.append(s)
+    partner = approaching_partner(warmup + frames)
+    together, apart = [], []
+    for i in range(warmup + frames):
+        t0 = time.perf_counter()
+        group.step(partner=partner[i], goals=goals)
+        t1 = time.perf_counter()
+        for s, g in zip(sessions, goals):
+            s.step(partner=partner[i], goal=g)
+        t2 = time.perf_counter()
+        if i >= warmup:
+            together.append((t1 - t0) * 1000.0)
+            apart.append((t2 - t1) * 1000.0)
+    return _percentiles(together), _percentiles(apart)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -54,9 +100,10 @@ def main(argv: list[str] | None = None) -> int:
                                  formatter_class=HelpFormatter)
     ap.add_argument("--json", action="store_true", help="print JSON lines only")
     ap.add_argument("--configs", default="default,paper", help="comma-separated model presets: tiny, default, paper")
-    ap.add_argument("--modes", default="segment,fwsr,fwsr-nocontrol,fwsr-raw,slide",
+    ap.add_argument("--modes", default="segment,fwsr,fwsr-nocontrol,fwsr-raw,slide,group8",
                     help="comma-separated modes: segment, fwsr, fwsr-nocontrol (no test-time control), "
-                         "fwsr-raw (no control, no foot cleanup), slide")
+                         "fwsr-raw (no control, no foot cleanup), slide, groupN (N egos as one group against "
+                         "N separate sessions, e.g. group8)")
     ap.add_argument("--frames", type=int, default=300, help="timed frames per case (segment and fwsr modes)")
     ap.add_argument("--slide-frames", type=int, default=300, help="timed frames for the (slow) slide mode")
     ap.add_argument("--warmup", type=int, default=24, help="untimed frames before timing")
@@ -76,16 +123,27 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             model = load_model(args.model, precision=prec) if args.model else load_model(config=cfg, precision=prec)
             for mode in args.modes.split(","):
-                n = args.slide_frames if mode == "slide" else args.frames
-                res = run_case(model, mode, n, args.warmup, scene)
-                row = {"config": cfg, "mode": mode, **res, "threads": threads, "precision": prec,
-                       "scene": scene is not None}
-                rows.append(row)
-                print(json.dumps(row), flush=True)
+                common = {"threads": threads, "precision": prec, "scene": scene is not None}
+                if mode.startswith("group"):
+                    egos = _group_size(mode)
+                    together, apart = run_group_case(model, egos, args.frames, args.warmup, scene)
+                    ratio = {f"ratio_{k}": round(together[k] / apart[k], 3) for k in ("p50_ms", "p99_ms")}
+                    found = [{"config": cfg, "mode": mode, **together, **ratio, "egos": egos, **common},
+                             {"config": cfg, "mode": f"separate{egos}", **apart, "egos": egos, **common}]
+                else:
+                    n = args.slide_frames if mode == "slide" else args.frames
+                    found = [{"config": cfg, "mode": mode, **run_case(model, mode, n, args.warmup, scene), **common}]
+                for row in found:
+                    rows.append(row)
+                    print(json.dumps(row), flush=True)
             by_mode = {r["mode"]: r for r in rows if r["config"] == cfg and r["precision"] == prec}
             if not args.json and "fwsr" in by_mode and "slide" in by_mode:
                 ratio = by_mode["fwsr"]["p50_ms"] / by_mode["slide"]["p50_ms"]
                 print(f"# {cfg} {prec}: fwsr p50 / slide p50 = {ratio:.3f}", file=sys.stderr)
+            for mode, row in by_mode.items():
+                if not args.json and mode.startswith("group"):
+                    print(f"# {cfg} {prec}: {mode} p50 {row['p50_ms']} ms, {row['ratio_p50_ms']:.3f} of "
+                          f"{row['egos']} separate sessions", file=sys.stderr)
     return 0
 
 

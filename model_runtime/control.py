@@ -10,7 +10,11 @@ The costs, on the decoded segment in the job's canonical frame (metres):
   recent velocity to the times the segment plays; and turning to face a partner who stands close by;
 - scene: ego joints closer than `scene_margin` to an obstacle, from a distance field built once per grid;
 - goal: progress toward the goal at a walking pace and facing it while far, coming to rest on it when near;
-- feet: toe sliding while near the floor, and joints below the floor.
+- feet: toe sliding while near the floor, and joints below the floor;
+- passing (between egos of a group): a walking ego passing another keeps `pass_clearance` aside on a side
+  both choose alike (the one each is on, else keep right), so that two egos walking at each other move
+  apart instead of into each other's way (a body's joints alone push back evenly on both sides).
+Every cost takes a batch of segments (a group of egos), one row each, and gives one cost per row.
 alpha_HHI scales the partner cost and alpha_HSI the scene and goal costs, so the sliders keep their
 meaning and alpha 0 ignores the partner or the scene; the foot and floor costs belong to the motion itself
 and apply at any alpha. Nothing here draws random numbers: the same seed still gives the same frames.
@@ -27,6 +31,8 @@ from .features import ROOT_T, feature_joints
 from .joints import JOINT_INDEX, LEFT_HIP, RIGHT_HIP, SOLE_BELOW_FOOT_JOINT
 
 FPS = 10.0
+PASS_TIE = 0.05          # m: this close to the line of the relative motion, neither side is taken yet ...
+PASS_TIE_SLOPE = 0.1     # ... plus this much per metre between them (4 degrees of walking direction noise)
 TOES = (JOINT_INDEX["left_foot"], JOINT_INDEX["right_foot"])
 
 
@@ -40,6 +46,10 @@ class ControlConfig:
     negligible_cost: float = 1e-4   # a segment costing less is left as it is
     partner_margin: float = 0.5     # m: joint-to-joint distance the partner cost keeps
     partner_weight: float = 200.0
+    pass_clearance: float = 0.7     # m: sideways pelvis offset kept from another ego while passing it ...
+    pass_length: float = 1.0        # m: ... while within this distance of it along the relative motion
+    pass_weight: float = 20.0
+    pass_speed: float = 0.3         # m/s: an ego or a relative motion slower than this passes no one
     face_weight: float = 10.0       # turning toward a partner standing within face_radius
     face_radius: float = 2.5        # m
     look_ahead: int = 8             # partner frames past a segment's end its last pose must keep clear of
@@ -80,64 +90,154 @@ def hip_forward(joints: torch.Tensor) -> torch.Tensor:
 
 
 def partner_cost(joints: torch.Tensor, partner: torch.Tensor, margin: float) -> torch.Tensor:
-    """Joint pairs closer than `margin`: sum of squared shortfalls. joints (T, 22, 3), partner (T + L, 22, 3).
+    """Joint pairs closer than `margin`: sum of squared shortfalls. joints (..., T, 22, 3), partner
+    (..., T + L, 22, 3); one cost per leading index.
 
     The partner's frames past the segment's end (L of them) are compared with the segment's last pose: a
     segment must end out of the way of where the partner goes next, since the next one starts from there.
     """
-    t = joints.shape[0]
-    ego = torch.cat((joints, joints[-1:].expand(partner.shape[0] - t, -1, -1)), 0)
+    t = joints.shape[-3]
+    last = joints[..., -1:, :, :]
+    ego = torch.cat((joints, last.expand(last.shape[:-3] + (partner.shape[-3] - t, -1, -1))), -3)
     d = torch.cdist(ego, partner)
-    return torch.relu(margin - d).pow(2).sum()
+    return torch.relu(margin - d).pow(2).sum((-3, -2, -1))
 
 
 def facing_cost(joints: torch.Tensor, target_xy: torch.Tensor) -> torch.Tensor:
-    """1 - cos of the angle between the last frame's facing and the direction to target_xy (2,)."""
-    last = joints[-1]
-    to = torch.nn.functional.normalize(target_xy - last[0, :2], dim=-1, eps=1e-6)
-    return 1.0 - (hip_forward(last) * to).sum()
+    """1 - cos of the angle between the last frame's facing and the direction to target_xy (..., 2)."""
+    last = joints[..., -1, :, :]
+    to = torch.nn.functional.normalize(target_xy - last[..., 0, :2], dim=-1, eps=1e-6)
+    return 1.0 - (hip_forward(last) * to).sum(-1)
 
 
 def scene_cost(world_joints: torch.Tensor, field: DistanceField, margin: float) -> torch.Tensor:
-    """Joints closer than `margin` to an obstacle (or inside one): sum of squared shortfalls."""
-    return torch.relu(margin - field(world_joints)).pow(2).sum()
+    """Joints closer than `margin` to an obstacle (or inside one): sum of squared shortfalls.
+    world_joints (T, 22, 3) or any points (..., 3): one cost; (B, T, 22, 3): one per segment."""
+    short = torch.relu(margin - field(world_joints)).pow(2)
+    return short.sum((-2, -1)) if short.dim() > 2 else short.sum()
 
 
 def goal_cost(pelvis: torch.Tensor, start_xy: torch.Tensor, goal_xy: torch.Tensor,
               cfg: ControlConfig) -> torch.Tensor:
-    """Progress toward a floor goal at `pace`, then standing on it. pelvis (T, 3); start_xy the pelvis before."""
-    frames = pelvis.shape[0]
-    start = torch.linalg.vector_norm(goal_xy - start_xy)
-    end = _smooth_norm(pelvis[-1, :2] - goal_xy)
+    """Progress toward a floor goal at `pace`, then standing on it. pelvis (..., T, 3); start_xy (..., 2) the
+    pelvis before; goal_xy (..., 2)."""
+    frames = pelvis.shape[-2]
+    start = torch.linalg.vector_norm(goal_xy - start_xy, dim=-1)
+    end = _smooth_norm(pelvis[..., -1, :2] - goal_xy)
     wanted = torch.clamp(start - cfg.pace * frames / FPS, min=0.0)
     cost = cfg.goal_weight * torch.relu(end - wanted)
-    if float(start) < cfg.rest_radius:
-        path = torch.cat((start_xy.unsqueeze(0), pelvis[:, :2]), 0)
-        steps = (path[1:] - path[:-1]).pow(2).sum()
-        cost = cost + cfg.rest_weight * (steps + end.pow(2))
-    return cost
+
+    def rest() -> torch.Tensor:
+        path = torch.cat((start_xy.unsqueeze(-2), pelvis[..., :2]), -2)
+        steps = (path[..., 1:, :] - path[..., :-1, :]).pow(2).sum((-2, -1))
+        return cfg.rest_weight * (steps + end.pow(2))
+
+    return _plus_where(cost, (start < cfg.rest_radius).reshape(-1).tolist(), rest)
 
 
 def seam_cost(joints: torch.Tensor, before: torch.Tensor, earlier: torch.Tensor) -> torch.Tensor:
     """Joint accelerations where a segment meets its history: at the last history frame and the first new one.
+    joints (..., T, 22, 3); before, earlier (..., 22, 3) the last two history frames; one cost per leading index.
 
     Accelerations rather than "continue the history's velocity": that one made any drift of a standing body
     carry on into every next segment and grow (measured: 28-50 m per minute of "a person stands").
     """
-    at_history = joints[0] - 2.0 * before + earlier
-    at_first = joints[1] - 2.0 * joints[0] + before
-    return at_history.pow(2).sum() + at_first.pow(2).sum()
+    at_history = joints[..., 0, :, :] - 2.0 * before + earlier
+    at_first = joints[..., 1, :, :] - 2.0 * joints[..., 0, :, :] + before
+    return at_history.pow(2).sum((-2, -1)) + at_first.pow(2).sum((-2, -1))
 
 
 def foot_cost(joints: torch.Tensor, before: torch.Tensor, cfg: ControlConfig) -> torch.Tensor:
-    """Toes sliding while near the floor, and any joint below it. joints (T, 22, 3); before (22, 3)."""
-    toes = torch.cat((before[TOES, :].unsqueeze(0), joints[:, TOES, :]), 0)      # (T + 1, 2, 3)
+    """Toes sliding while near the floor, and any joint below it. joints (..., T, 22, 3); before (..., 22, 3)."""
+    toes = torch.cat((before[..., TOES, :].unsqueeze(-3), joints[..., :, TOES, :]), -3)      # (..., T + 1, 2, 3)
     sole = toes[..., 2] - SOLE_BELOW_FOOT_JOINT
     near = torch.sigmoid((0.04 - sole) / 0.01).detach()       # how planted each toe is; not a thing to move
-    slide = (toes[1:, :, :2] - toes[:-1, :, :2]).pow(2).sum(-1)
-    skate = (near[1:] * near[:-1] * slide).sum()
-    below = torch.relu(-sole).pow(2).sum() + torch.relu(-joints[..., 2]).pow(2).sum()
+    slide = (toes[..., 1:, :, :2] - toes[..., :-1, :, :2]).pow(2).sum(-1)
+    skate = (near[..., 1:, :] * near[..., :-1, :] * slide).sum((-2, -1))
+    below = torch.relu(-sole).pow(2).sum((-2, -1)) + torch.relu(-joints[..., 2]).pow(2).sum((-2, -1))
     return cfg.skate_weight * skate + cfg.floor_weight * below
+
+
+def passing_cost(ego_xy: torch.Tensor, partner_xy: torch.Tensor, away: torch.Tensor,
+                 cfg: ControlConfig) -> torch.Tensor:
+    """Passing a partner on one side with room to spare. ego_xy, partner_xy (R, N, 2) pelvis paths; away (R, 2)
+    the unit direction, across the relative motion, in which the ego keeps clear of the partner. Each frame
+    within `pass_length` of the partner along the motion asks for `pass_clearance` that way, so the gradient
+    moves the ego aside instead of only slowing it down (a body's joints push back evenly on both sides)."""
+    rel = ego_xy - partner_xy
+    along = torch.stack((away[:, 1], -away[:, 0]), -1)
+    lon = (rel * along.unsqueeze(1)).sum(-1)
+    lat = (rel * away.unsqueeze(1)).sum(-1)
+    near = torch.relu(1.0 - lon.abs() / cfg.pass_length).detach()         # where to be aside, not a thing to move
+    return (near * torch.relu(cfg.pass_clearance - lat).pow(2)).sum(-1)
+
+
+def passing_away(own: np.ndarray, other: np.ndarray, before: np.ndarray | None,
+                 cfg: ControlConfig) -> np.ndarray | None:
+    """The world direction (unit xy) in which to pass another character, or None when not passing anyone.
+
+    own, other (N, 2), N >= 2: the latest pelvis positions (xy, oldest first, one a frame) of the ego and of
+    the other; their velocities are taken over all N, steadier than a step. Only a walking ego starts a
+    pass: standing, it faces whoever comes (the partner cost still keeps its joints clear). A pass starts on
+    the side of their relative motion the ego is on, or with the other on its left ("keep right") when that
+    is not clear yet (the offset a few metres ahead is within the noise of the walking direction), and keeps
+    that side (`before`, its direction so far) until the two have passed each other. Two egos passing each
+    other see each other's inputs mirrored, so they choose opposite sides: they move apart.
+    """
+    frames = len(own) - 1
+    own_v = (own[-1] - own[0]) / frames
+    rel_v = own_v - (other[-1] - other[0]) / frames
+    speed = float(np.hypot(rel_v[0], rel_v[1]))
+    if speed * FPS < cfg.pass_speed or (before is None and float(np.hypot(own_v[0], own_v[1])) * FPS < cfg.pass_speed):
+        return None                    # walking alongside is no pass; a standing ego lets others come to it
+    along = rel_v / speed
+    left = np.array([-along[1], along[0]])
+    rel = own[-1] - other[-1]
+    lon, lat = float(rel @ along), float(rel @ left)
+    if lon > cfg.pass_length:          # moving apart and clear of each other: the pass is over
+        return None
+    if before is not None:
+        side = float(np.sign(before @ left)) or -1.0
+    else:
+        side = float(np.sign(lat)) if abs(lat) > PASS_TIE + PASS_TIE_SLOPE * abs(lon) else -1.0
+    return side * left
+
+
+def passing_reaches(own: np.ndarray, other: np.ndarray, away: np.ndarray, first: int, last: int,
+                    cfg: ControlConfig) -> bool:
+    """Whether a pass in direction `away` asks anything of the frames `first`..`last` after the latest one:
+    at one of them, moving on as now, the other is within `pass_length` along the relative motion while the
+    ego is not yet `pass_clearance` aside. own, other (N, 2) as for passing_away."""
+    frames = len(own) - 1
+    rel_v = ((own[-1] - own[0]) - (other[-1] - other[0])) / frames
+    rel = own[-1] - other[-1]
+    if float(rel @ away) >= cfg.pass_clearance:
+        return False
+    along = np.array([away[1], -away[0]])
+    ends = float(rel @ along) + float(rel_v @ along) * np.array([first, last], dtype=np.float64)
+    return bool(ends.min() < cfg.pass_length and ends.max() > -cfg.pass_length)
+
+
+def _plus_where(cost: torch.Tensor, mask: list[bool], term) -> torch.Tensor:
+    """cost + term() on the rows of `mask`: the plain sum when every row takes it, cost itself when none."""
+    if not any(mask):
+        return cost
+    extra = term()
+    if all(mask):
+        return cost + extra
+    return cost + torch.where(torch.tensor(mask).view(extra.shape[:1] + (1,) * (extra.dim() - 1)), extra,
+                              torch.zeros_like(extra))
+
+
+def _held(x: torch.Tensor, frames: int) -> torch.Tensor:
+    """(R, T, ...) -> (R, frames, ...): the last entry held for the frames past T."""
+    last = x[:, -1:]
+    return torch.cat((x, last.expand((last.shape[0], frames - x.shape[1]) + last.shape[2:])), 1)
+
+
+def _weight(values: list[float]) -> float | torch.Tensor:
+    """One number when every row shares it (one segment stays exactly as it was), else one per row."""
+    return values[0] if all(v == values[0] for v in values) else torch.tensor(values)
 
 
 @dataclass
@@ -145,6 +245,7 @@ class ControlTargets:
     """What one segment is steered toward, in the job's canonical frame; None where a cost does not apply."""
     partner: torch.Tensor | None = None        # (T + L, 22, 3) the partner at the segment's frames and L after
     partner_still: bool = False                # standing within reach: also face them
+    pass_away: torch.Tensor | None = None      # (2,) unit: passing the partner, keep clear of it this way
     field: DistanceField | None = None
     to_world: tuple[torch.Tensor, torch.Tensor] | None = None   # (rot, trans) canonical -> world
     goal_xy: torch.Tensor | None = None
@@ -152,50 +253,105 @@ class ControlTargets:
     alpha_hsi: float = 0.0
 
 
-class SegmentCosts:
-    """The total cost of a decoded segment (normalised features) given its history and targets."""
+class _Rows:
+    """The rows (segments) a cost applies to, and their inputs stacked: `index` None when all rows."""
 
-    def __init__(self, stats, hist_n: torch.Tensor, targets: ControlTargets, cfg: ControlConfig,
-                 keep: torch.Tensor | None = None) -> None:
-        """With `keep`, the joints (F, 22, 3) a finished latent decodes to with the real history at a segment's
-        start, the seam is costed too, and the segment after its first frames is kept close to `keep`."""
-        self.keep = keep
-        self.stats, self.t, self.cfg = stats, targets, cfg
-        hist = stats.denormalize(hist_n[0])
-        self.before_joints = feature_joints(hist[-1])
-        self.before_xy = hist[-1, ROOT_T][:2]
-        self.earlier_joints = feature_joints(hist[-2]) if hist.shape[0] >= 2 else None
+    def __init__(self, take: list[bool]) -> None:
+        self.any = any(take)
+        self.all = all(take)
+        self.rows = [i for i, t in enumerate(take) if t]
+        self.index = None if self.all else torch.tensor(self.rows, dtype=torch.long)
+
+    def of(self, x: torch.Tensor) -> torch.Tensor:
+        return x if self.index is None else x[self.index]
+
+    def add(self, cost: torch.Tensor, term: torch.Tensor) -> torch.Tensor:
+        return cost + term if self.index is None else cost.index_add(0, self.index, term)
+
+
+class SegmentCosts:
+    """The cost of decoded segments (normalised features (B, T, D) -> (B,)), one row per segment, given their
+    histories and targets: one ControlTargets per row (a group of egos) or one for all rows."""
+
+    def __init__(self, stats, hist_n: torch.Tensor, targets: ControlTargets | list[ControlTargets],
+                 cfg: ControlConfig, keep: torch.Tensor | None = None) -> None:
+        """With `keep`, the joints ((B,) F, 22, 3) finished latents decode to with the real history at a
+        segment's start, the seam is costed too, and each segment after its first frames is kept close to it."""
+        self.stats, self.cfg = stats, cfg
+        self.keep = keep.unsqueeze(0) if keep is not None and keep.dim() == 3 else keep
+        hist = stats.denormalize(hist_n)
+        self.before_joints = feature_joints(hist[:, -1])
+        self.before_xy = hist[:, -1, ROOT_T][:, :2]
+        self.earlier_joints = feature_joints(hist[:, -2]) if hist.shape[1] >= 2 else None
+        ts = list(targets) if isinstance(targets, (list, tuple)) else [targets] * hist_n.shape[0]
+        p = self.partner = _Rows([t.partner is not None and t.alpha_hhi > 0.0 for t in ts])
+        if p.any:
+            self.partner_future = torch.stack([ts[i].partner for i in p.rows])
+            self.still = [bool(ts[i].partner_still) for i in p.rows]
+            self.alpha_hhi = _weight([ts[i].alpha_hhi for i in p.rows])
+            # passing rows among the partner rows
+            self.passes = _Rows([ts[i].pass_away is not None for i in p.rows])
+            if self.passes.any:
+                self.away = torch.stack([ts[p.rows[k]].pass_away for k in self.passes.rows])
+        s = self.scene = _Rows([t.alpha_hsi > 0.0 for t in ts])
+        if s.any:
+            on = [ts[i] for i in s.rows]
+            self.alpha_hsi = _weight([t.alpha_hsi for t in on])
+            self.field = on[0].field if all(t.field is not None and t.to_world is not None for t in on) else None
+            if self.field is not None:
+                self.rot = torch.stack([t.to_world[0] for t in on])
+                self.trans = torch.stack([t.to_world[1] for t in on])
+            # goals among the scene rows, and which of them are far enough to be faced
+            self.goal = _Rows([t.goal_xy is not None for t in on])
+            if self.goal.any:
+                self.goal_xy = torch.stack([on[i].goal_xy for i in self.goal.rows])
+                start = self.goal.of(s.of(self.before_xy))
+                self.far = (torch.linalg.vector_norm(self.goal_xy - start, dim=-1) > cfg.goal_face_distance).tolist()
 
     def __call__(self, feat_n: torch.Tensor) -> torch.Tensor:
-        feat = self.stats.denormalize(feat_n[0])
+        feat = self.stats.denormalize(feat_n)
         joints = feature_joints(feat)
-        t, cfg = self.t, self.cfg
+        cfg = self.cfg
         cost = foot_cost(joints, self.before_joints, cfg)
         if self.keep is not None and self.earlier_joints is not None:
             cost = cost + cfg.seam_weight * seam_cost(joints, self.before_joints, self.earlier_joints)
-            cost = cost + cfg.keep_weight * (joints[2:] - self.keep[2:]).pow(2).sum()
-        if t.partner is not None and t.alpha_hhi > 0.0:
-            partner = cfg.partner_weight * partner_cost(joints, t.partner, cfg.partner_margin)
-            if t.partner_still:
-                partner = partner + cfg.face_weight * facing_cost(joints, t.partner[-1, 0, :2])
-            cost = cost + t.alpha_hhi * partner
-        if t.alpha_hsi > 0.0:
-            scene = torch.zeros(())
-            if t.field is not None and t.to_world is not None:
-                rot, trans = t.to_world
-                world = joints @ rot.T + trans
-                scene = cfg.scene_weight * scene_cost(world, t.field, cfg.scene_margin)
-            if t.goal_xy is not None:
-                scene = scene + goal_cost(feat[:, ROOT_T], self.before_xy, t.goal_xy, cfg)
-                far = float(torch.linalg.vector_norm(t.goal_xy - self.before_xy)) > cfg.goal_face_distance
-                if far:
-                    scene = scene + cfg.goal_face_weight * facing_cost(joints, t.goal_xy)
-            cost = cost + t.alpha_hsi * scene
+            cost = cost + cfg.keep_weight * (joints[:, 2:] - self.keep[:, 2:]).pow(2).sum((-3, -2, -1))
+        p = self.partner
+        if p.any:
+            mine = p.of(joints)
+            partner = cfg.partner_weight * partner_cost(mine, self.partner_future, cfg.partner_margin)
+            w = self.passes
+            if w.any:
+                held = _held(w.of(p.of(feat))[..., ROOT_T][..., :2], self.partner_future.shape[1])
+                passing = passing_cost(held, w.of(self.partner_future)[..., 0, :2], self.away, cfg)
+                partner = w.add(partner, cfg.pass_weight * passing)
+            partner = _plus_where(partner, self.still, lambda: cfg.face_weight * facing_cost(
+                mine, self.partner_future[:, -1, 0, :2]))
+            cost = p.add(cost, self.alpha_hhi * partner)
+        s = self.scene
+        if s.any:
+            mine = s.of(joints)
+            scene = torch.zeros(mine.shape[0])
+            if self.field is not None:
+                if mine.shape[0] == 1:    # one segment: the very product it has alone
+                    world = mine @ self.rot[0].T + self.trans[0]
+                else:
+                    world = mine @ self.rot.transpose(-1, -2).unsqueeze(1) + self.trans.view(-1, 1, 1, 3)
+                scene = cfg.scene_weight * scene_cost(world, self.field, cfg.scene_margin)
+            g = self.goal
+            if g.any:
+                at = g.of(mine)
+                goal = goal_cost(g.of(s.of(feat))[..., ROOT_T], g.of(s.of(self.before_xy)), self.goal_xy, cfg)
+                goal = _plus_where(goal, self.far, lambda: cfg.goal_face_weight * facing_cost(at, self.goal_xy))
+                scene = g.add(scene, goal)
+            cost = s.add(cost, self.alpha_hsi * scene)
         return cost
 
 
 class LatentSteer:
-    """Moves a predicted clean latent down the gradient of a segment's costs (one decoder pass each way)."""
+    """Moves predicted clean latents down the gradients of their segments' costs: one decoder pass each way
+    for the whole batch (a group of egos). Rows do not mix (the decoder treats them apart), so the gradient
+    of the summed costs is each row's own gradient."""
 
     def __init__(self, model, hist_n: torch.Tensor, costs: SegmentCosts, cfg: ControlConfig,
                  step_size: float | None = None) -> None:
@@ -206,9 +362,20 @@ class LatentSteer:
         with torch.enable_grad():
             z = x0.detach().clone().requires_grad_(True)
             cost = self.costs(self.model.decode(self.hist, z))
-            if not cost.requires_grad or float(cost.detach()) < self.cfg.negligible_cost:
+            # a row costing (almost) nothing is left as it is; with none left, skip the backward pass too
+            rows = cost.detach().double() >= self.cfg.negligible_cost
+            if not cost.requires_grad or not bool(rows.any()):
                 return x0      # nothing to correct: skip the backward pass (most of a steering step's time)
-            (grad,) = torch.autograd.grad(cost, z)
+            (grad,) = torch.autograd.grad(cost.sum() if bool(rows.all()) else cost[rows].sum(), z)
+        if x0.shape[0] == 1:
+            return self._moved(x0, grad)
+        norm = grad.flatten(1).norm(dim=1)
+        move = rows & torch.isfinite(norm) & (norm > 0.0)
+        scale = self.step_size * torch.clamp(self.cfg.max_gradient / norm, max=1.0)
+        return torch.where(move.view(-1, 1, 1), x0 - scale.view(-1, 1, 1) * grad, x0).detach()
+
+    def _moved(self, x0: torch.Tensor, grad: torch.Tensor) -> torch.Tensor:
+        """One bounded step down `grad`; x0 itself when the gradient is useless."""
         norm = float(grad.norm())
         if not np.isfinite(norm) or norm == 0.0:
             return x0

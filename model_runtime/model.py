@@ -30,19 +30,25 @@ def non_finite_weight(state_dict: dict) -> str | None:
 class Contexts:
     """Encoded interaction context of one segment: per module (tokens, mask or None).
 
-    Caches what stays constant over the segment's denoising steps: the batch-repeated copies for
-    classifier-free guidance and each block's cross-attention keys/values.
+    In a batch of egos a module may serve only some rows: `rows[name]` then holds their batch indices (the
+    tokens are those rows' only); a module without an entry serves every row. Caches what stays constant
+    over the segment's denoising steps: the batch-repeated copies for classifier-free guidance and each
+    block's cross-attention keys/values.
     """
 
-    def __init__(self, items: dict[str, tuple[torch.Tensor, torch.Tensor | None]]) -> None:
+    def __init__(self, items: dict[str, tuple[torch.Tensor, torch.Tensor | None]],
+                 rows: dict[str, torch.Tensor] | None = None, batch: int = 0) -> None:
         self.items = items
+        self.rows = rows or {}
+        self.batch = batch       # the batch size the row indices refer to (needed only with rows)
         self._repeats: dict[int, Contexts] = {1: self}
         self._kv: dict[tuple[str, int], tuple[torch.Tensor, torch.Tensor]] = {}
 
     def repeat(self, n: int) -> "Contexts":
         if n not in self._repeats:
+            rows = {k: torch.cat([r + i * self.batch for i in range(n)]) for k, r in self.rows.items()}
             self._repeats[n] = Contexts({k: (t.repeat(n, 1, 1), None if m is None else m.repeat(n, 1))
-                                         for k, (t, m) in self.items.items()})
+                                         for k, (t, m) in self.items.items()}, rows, n * self.batch)
         return self._repeats[n]
 
     def kv(self, name: str, layer: int, block) -> tuple[torch.Tensor, torch.Tensor]:
@@ -50,6 +56,28 @@ class Contexts:
         if key not in self._kv:
             self._kv[key] = block.cross.context_kv(self.items[name][0])
         return self._kv[key]
+
+
+def _rows_of(on: torch.Tensor) -> torch.Tensor | None | bool:
+    """The rows a module serves: None for all of them, their indices for some, False for none."""
+    if bool(on.all()):
+        return None
+    idx = torch.nonzero(on).flatten()
+    return idx if idx.numel() else False
+
+
+def _alpha_on(active: dict[str, float] | list[dict[str, float]], name: str, b: int) -> torch.Tensor:
+    """(b,) bool: which rows give module `name` a non-zero alpha (one dict: all rows alike)."""
+    if isinstance(active, dict):
+        return torch.full((b,), active.get(name, 0.0) != 0.0)
+    return torch.tensor([a.get(name, 0.0) != 0.0 for a in active], dtype=torch.bool)
+
+
+def _per_row(values: list[float], n: int, dtype: torch.dtype) -> float | torch.Tensor:
+    """One number when every row shares it (the single-ego path stays exactly as it was), else (n*B, 1, 1)."""
+    if all(v == values[0] for v in values):
+        return values[0]
+    return torch.tensor(values, dtype=dtype).repeat(n).view(-1, 1, 1)
 
 
 class ReMoGenModel(nn.Module):
@@ -123,33 +151,56 @@ class ReMoGenModel(nn.Module):
 
     def encode_contexts(self, partner: torch.Tensor | None, present: torch.Tensor | None,
                         occupancy: torch.Tensor | None, goal: torch.Tensor | None,
-                        active: dict[str, float]) -> Contexts:
-        """Encode only what the active (alpha != 0) modules need; absent cues switch a module off."""
+                        active: dict[str, float] | list[dict[str, float]],
+                        has_goal: torch.Tensor | None = None) -> Contexts:
+        """Encode only what the active (alpha != 0) modules need; absent cues switch a module off.
+
+        `active`: one alpha dict for the whole batch, or one per row (a group of egos: a module then runs
+        only on the rows whose alpha and cue call for it). has_goal (B,) marks the rows whose goal is real
+        (default: every row when `goal` is given).
+        """
         items: dict[str, tuple[torch.Tensor, torch.Tensor | None]] = {}
+        rows: dict[str, torch.Tensor] = {}
         dt = self.diffusion_dtype
-        if active.get("hhi", 0.0) != 0.0 and partner is not None and present is not None and bool(present.any()):
-            items["hhi"] = (self.mims["hhi"].encoder(partner.to(dt), present), present)
-        if active.get("hsi", 0.0) != 0.0 and (occupancy is not None or goal is not None):
+        per_row = not isinstance(active, dict)
+        b = 0
+        if partner is not None and present is not None:
+            b = partner.shape[0]
+            cue = present.any(1) if per_row else present.any().expand(b)
+            r = _rows_of(cue & _alpha_on(active, "hhi", b))
+            if r is not False:
+                p, m = (partner, present) if r is None else (partner[r], present[r])
+                items["hhi"] = (self.mims["hhi"].encoder(p.to(dt), m), m)
+                if r is not None:
+                    rows["hhi"] = r
+        if occupancy is not None or goal is not None:
             b = (occupancy if occupancy is not None else goal).shape[0]
-            r = self.cfg.voxel_resolution
-            occ = occupancy if occupancy is not None else torch.zeros(b, r, r, r)
-            g = goal if goal is not None else torch.zeros(b, 3)
-            has = torch.full((b,), goal is not None)
-            items["hsi"] = (self.mims["hsi"].encoder(occ.to(dt), g.to(dt), has), None)
-        return Contexts(items)
+            has = has_goal if has_goal is not None else torch.full((b,), goal is not None)
+            r = _rows_of((has | (occupancy is not None)) & _alpha_on(active, "hsi", b))
+            if r is not False:
+                res = self.cfg.voxel_resolution
+                occ = occupancy if occupancy is not None else torch.zeros(b, res, res, res)
+                g = goal if goal is not None else torch.zeros(b, 3)
+                if r is not None:
+                    occ, g, has = occ[r], g[r], has[r]
+                    rows["hsi"] = r
+                items["hsi"] = (self.mims["hsi"].encoder(occ.to(dt), g.to(dt), has), None)
+        return Contexts(items, rows, b)
 
     # ------------------------------------------------------------------ denoising
     def predict_x0(self, z_t: torch.Tensor, t: int, hist: torch.Tensor, text_emb: torch.Tensor,
-                   contexts: Contexts, alpha: dict[str, float], guidance: float,
-                   cache: dict | None = None) -> torch.Tensor:
+                   contexts: Contexts, alpha: dict[str, float] | list[dict[str, float]],
+                   guidance: float | list[float], cache: dict | None = None) -> torch.Tensor:
         """x0 with classifier-free guidance: conditional and unconditional passes as one batch.
 
-        `cache` (owned by a DiffusionJob) keeps the tokens that do not change between a segment's
-        denoising steps (text + history tokens, all step embeddings).
+        A group of egos passes one text embedding, alpha dict and guidance per row. `cache` (owned by a
+        DiffusionJob) keeps the tokens that do not change between a segment's denoising steps (text +
+        history tokens, all step embeddings).
         """
         b = z_t.shape[0]
         dt = self.diffusion_dtype
-        use_cfg = guidance != 1.0
+        scales = [float(guidance)] if isinstance(guidance, (int, float)) else [float(g) for g in guidance]
+        use_cfg = any(g != 1.0 for g in scales)
         n = 2 if use_cfg else 1
         cache = {} if cache is None else cache
         if ("cond", n) not in cache:
@@ -167,13 +218,21 @@ class ReMoGenModel(nn.Module):
         if not use_cfg:
             return x0
         cond, uncond = x0[:b], x0[b:]
-        return uncond + guidance * (cond - uncond)
+        w = _per_row(scales, 1, torch.float32)
+        guided = uncond + w * (cond - uncond)
+        # a row with guidance 1 is its conditional pass exactly, as it is without the others
+        return guided if not torch.is_tensor(w) else torch.where(w == 1.0, cond, guided)
 
-    def injector(self, ctx: Contexts, alpha: dict[str, float]):
-        """The denoiser hook adding the composed Meta-Interaction residuals; None when no module is active."""
-        names = [k for k in MODULE_NAMES if k in ctx.items and alpha.get(k, 0.0) != 0.0]
+    def injector(self, ctx: Contexts, alpha: dict[str, float] | list[dict[str, float]]):
+        """The denoiser hook adding the composed Meta-Interaction residuals; None when no module is active.
+
+        alpha: one dict for every row, or one per row of the (unrepeated) batch.
+        """
+        alphas = [alpha] if isinstance(alpha, dict) else list(alpha)
+        names = [k for k in MODULE_NAMES if k in ctx.items and any(a.get(k, 0.0) != 0.0 for a in alphas)]
         if not names:
             return None
+        values = {k: [a.get(k, 0.0) for a in alphas] for k in names}
 
         def inject(layer: int, h: torch.Tensor) -> torch.Tensor | None:
             deltas, weights = [], []
@@ -181,8 +240,14 @@ class ReMoGenModel(nn.Module):
                 block = self.mims[k].block_at(layer)
                 if block is not None:
                     tok, mask = ctx.items[k]
-                    deltas.append(block(h, tok, mask, ctx.kv(k, layer, block)))
-                    weights.append(alpha[k])
+                    rows = ctx.rows.get(k)
+                    if rows is None:
+                        deltas.append(block(h, tok, mask, ctx.kv(k, layer, block)))
+                    else:     # the rows this module serves; the others get no residual from it
+                        delta = torch.zeros_like(h)
+                        delta[rows] = block(h[rows], tok, mask, ctx.kv(k, layer, block))
+                        deltas.append(delta)
+                    weights.append(_per_row(values[k], h.shape[0] // len(alphas), h.dtype))
             return compose_residuals(deltas, weights)
 
         return inject
@@ -232,10 +297,14 @@ class DiffusionJob:
     With `steer` (test-time control), the predicted x0 of the last `steered_steps` denoising steps is moved
     by it, and then the clean latent takes `final_steers` more of its steps: those last ones stay in the
     result in full, where earlier ones are partly undone by the denoising that follows them.
+
+    A group of egos is one job: one alpha dict, guidance and generator per row (each row then draws its
+    noise from its own generator, exactly as it would alone).
     """
 
     def __init__(self, model: ReMoGenModel, hist: torch.Tensor, text_emb: torch.Tensor, contexts: Contexts,
-                 alpha: dict[str, float], guidance: float, generator: torch.Generator,
+                 alpha: dict[str, float] | list[dict[str, float]], guidance: float | list[float],
+                 generator: torch.Generator | list[torch.Generator],
                  steer: Callable[[torch.Tensor], torch.Tensor] | None = None, steered_steps: int = 0,
                  final_steers: int = 0) -> None:
         self.model, self.hist, self.text_emb, self.contexts = model, hist, text_emb, contexts
@@ -243,10 +312,12 @@ class DiffusionJob:
         self.steered_steps = steered_steps if steer is not None else 0
         self.final_steers = final_steers if steer is not None else 0
         self._cache: dict = {}
-        self.alpha, self.guidance, self.gen = dict(alpha), float(guidance), generator
+        self.alpha = dict(alpha) if isinstance(alpha, dict) else [dict(a) for a in alpha]
+        self.guidance = float(guidance) if isinstance(guidance, (int, float)) else [float(g) for g in guidance]
+        self.gen = generator
         cfg = model.cfg
         shape = (hist.shape[0], cfg.latent_tokens, cfg.latent_dim)
-        self.z = torch.randn(shape, generator=generator)
+        self.z = _noise(shape, generator)
         self.t = cfg.diffusion_steps - 1
         self._clean: torch.Tensor | None = None     # the denoised latent while final steers remain
         self._steers_left = self.final_steers
@@ -284,8 +355,15 @@ class DiffusionJob:
                 if self.t == 0:
                     self._clean = x0
                 else:
-                    noise = torch.randn(self.z.shape, generator=self.gen)
+                    noise = _noise(self.z.shape, self.gen)
                     self.z = self.model.schedule.step(self.z, self.t, x0, noise)
                     self.t -= 1
             if self._clean is not None and self._steers_left == 0:
                 self.result = self._clean
+
+
+def _noise(shape: tuple[int, ...], generator: torch.Generator | list[torch.Generator]) -> torch.Tensor:
+    """Standard normal noise; with one generator per row, each row drawn from its own."""
+    if isinstance(generator, torch.Generator):
+        return torch.randn(shape, generator=generator)
+    return torch.cat([torch.randn((1,) + tuple(shape[1:]), generator=g) for g in generator])

@@ -180,13 +180,13 @@ def rot6d_to_matrix_np(d6: np.ndarray) -> np.ndarray:
 
 
 def forward_kinematics_np(local_rot: np.ndarray, pelvis: np.ndarray, world_rotations: bool = False):
-    """(22, 3, 3) local rotations, (3,) pelvis -> (22, 3) joints, and their (22, 3, 3) world rotations when
-    `world_rotations` (the planted-foot IK needs both, and FK computes both anyway)."""
+    """(..., 22, 3, 3) local rotations, (..., 3) pelvis -> (..., 22, 3) joints, and their (..., 22, 3, 3) world
+    rotations when `world_rotations` (the planted-foot IK needs both, and FK computes both anyway)."""
     glob = np.empty_like(local_rot)
-    pos = np.empty((NUM_JOINTS, 3), dtype=local_rot.dtype)
-    glob[0], pos[0] = local_rot[0], pelvis
+    pos = np.empty(local_rot.shape[:-2] + (3,), dtype=local_rot.dtype)
+    glob[..., 0, :, :], pos[..., 0, :] = local_rot[..., 0, :, :], pelvis
     for idx, par in _LEVELS_NP:
-        gp = glob[par]
-        glob[idx] = gp @ local_rot[idx]
-        pos[idx] = pos[par] + (gp @ _OFFSETS_NP[idx][..., None])[..., 0]
+        gp = glob[..., par, :, :]
+        glob[..., idx, :, :] = gp @ local_rot[..., idx, :, :]
+        pos[..., idx, :] = pos[..., par, :] + (gp @ _OFFSETS_NP[idx][..., None])[..., 0]
     return (pos, glob) if world_rotations else pos

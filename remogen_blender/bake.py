@@ -1,5 +1,6 @@
-"""Bake: generate a frame range deterministically for the seed and key it into a new action on the ego, and
-on the target rig when one is set (each posed armature gets its own new action; their old ones are kept).
+"""Bake: generate a frame range deterministically for the seeds and key it into a new action on the ego, on
+the target rig when one is set, and on every other ego of the scene's ego list (each posed armature gets its
+own new action; their old ones are kept).
 
 The session is stepped once per model frame (0.1 s) with the partner as Live sees it during playback: at
 the scene frame where Live first needs that model frame (the frame at its time at 10 fps, up to 0.1 s
@@ -30,7 +31,7 @@ MAX_MODEL_SECONDS = 3600.0   # model time generated in one bake (36,000 model fr
 
 
 class BakeCancelled(UserError):
-    """The bake was cancelled; the scene, the ego and its action are as they were."""
+    """The bake was cancelled; the scene, the egos and their actions are as they were."""
 
 
 @dataclass
@@ -134,21 +135,21 @@ class BakeJob:
             poses = driver.poses_at((frames - self.f0) / self.fps)
             channels = []                     # per posed armature: [(bone, property, (T, n) values)]
             if driver.writer is not None:
-                locs, rots = driver.writer.pose_channels(poses.pelvis, poses.local_rotations)
-                rots = api().continuous_quaternions(rots)
-                _check_finite("Ego", driver.writer.name, locs, rots)
-                channels.append(action_mod.pose_channels(list(api().JOINT_NAMES), locs, rots, root="pelvis"))
+                channels.append(_ego_channels("Ego", driver.writer, poses))
             if driver.target is not None:
                 locs, rots = driver.target_channels(poses)
                 _check_finite("Target", driver.target.name, locs, rots)
                 channels.append(driver.target.key_channels(locs, rots))
+            for k, e in enumerate(driver.others, start=1):
+                channels.append(_ego_channels(e.label, e.writer, driver.poses_at((frames - self.f0) / self.fps, k)))
         except BaseException:
             self.cancel()
             raise
         self.scene.frame_set(self._saved_frame[0], subframe=self._saved_frame[1])
-        seed = self.scene.remogen.seed
+        # the seed in each action's name is its ego's: the first ego's for the ego and the target
+        seeds = [self.scene.remogen.seed] * (len(self.posed) - len(driver.others)) + [e.source.seed for e in driver.others]
         keyed = []
-        for k, (ob, chans) in enumerate(zip(self.posed, channels)):
+        for k, (ob, chans, seed) in enumerate(zip(self.posed, channels, seeds)):
             name = (self.name if k == 0 else f"{self.name}_{ob.name}") if self.name else f"ReMoGen_{ob.name}_seed{seed}"
             act, replaced = action_mod.write_bone_keys(ob, name, frames, chans)
             keyed.append((ob.name, act, replaced))
@@ -156,6 +157,14 @@ class BakeJob:
         self._closed = True
         return BakeResult(keyed[0][1], len(frames), self.total, time.perf_counter() - self._t_start, keyed[0][2],
                           keyed)
+
+
+def _ego_channels(what: str, writer: Any, poses: Any) -> list:
+    """The key channels of an ego armature for a batch of poses, checked finite."""
+    locs, rots = writer.pose_channels(poses.pelvis, poses.local_rotations)
+    rots = api().continuous_quaternions(rots)
+    _check_finite(what, writer.name, locs, rots)
+    return action_mod.pose_channels(list(api().JOINT_NAMES), locs, rots, root="pelvis")
 
 
 def _check_finite(what: str, name: str, locs: np.ndarray, rots: np.ndarray) -> None:

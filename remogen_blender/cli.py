@@ -198,7 +198,8 @@ def _bake(args: argparse.Namespace, sig: _Signals) -> int:
     if sig.requested():
         return _cancelled(sig, "stopped while saving")
     print(f"remogen: baked frames {f0}-{f1} ({res.model_frames} model frames, {res.model_fps:.0f}/s, "
-          f"{time.perf_counter() - t0:.1f} s) into action '{res.action.name}'; saved {out}")
+          f"{time.perf_counter() - t0:.1f} s) into action {', '.join(repr(a.name) for _ob, a, _old in res.keyed)}; "
+          f"saved {out}")
     return 0
 
 

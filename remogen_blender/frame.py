@@ -1,4 +1,4 @@
-"""The one per-frame function: read the partner -> step the session -> write the ego and/or the target.
+"""The one per-frame function: read the partner -> step the egos -> write the egos and/or the target.
 
 `FrameDriver.update()` is called by the live modal operator (timer), the frame-change handler and the bake
 loop alike. Scene time (any fps, any frame_start) maps to model time, one model frame per 0.1 s; frames
@@ -8,6 +8,9 @@ A target rig (the user's own armature, rig/target.py) is posed from the same pos
 instead of it. While the ego reports a foot planted (EgoFrame.contacts) the target's toe stays where it was
 at the model frame that contact began; after lift-off the remaining correction fades out by the next model
 frame. Those points are computed per model frame, so live and a bake pin the same points.
+
+More egos (the scene's ego list) are stepped together with the first one as one ReactionGroup; each reacts
+to the nearest other character, the partner or another ego. The target follows the first ego.
 """
 from __future__ import annotations
 
@@ -54,14 +57,43 @@ class Pose:
     contact_start: np.ndarray     # (2,) or (T, 2) int: model frame where the contact at `frame` began, -1 none
 
 
-def _settings(st: Any) -> tuple:
-    """The panel settings a running session follows (a change is passed on before the next model frame)."""
-    return (st.text, st.seed, st.alpha_hhi, st.alpha_hsi, st.guidance, st.use_fwsr, st.use_foot_lock,
-            st.use_control)
+def _settings(src: Any) -> tuple:
+    """The panel settings an ego follows (a change is passed on before the next model frame)."""
+    return src.text, src.seed, src.alpha_hhi, src.alpha_hsi, src.guidance, src.use_fwsr
+
+
+@dataclass
+class OtherEgo:
+    """An ego of the scene's ego list: its entry (where its settings are), its name in messages, its writer."""
+    source: Any
+    label: str
+    writer: rig.EgoWriter
+
+
+def other_egos(scene: bpy.types.Scene) -> list[OtherEgo]:
+    """The egos of the scene's ego list, checked: each has its own armature, in the scene, that is neither
+    the first ego, the partner nor the target."""
+    st = scene.remogen
+    seen = {ob.name for ob in (st.ego, st.target) if ob is not None}
+    out = []
+    for n, item in enumerate(st.egos, start=2):
+        label = f"Ego {n}"
+        if item.ego is None:
+            raise UserError(f"{label} of the ego list has no armature; pick one or remove the entry")
+        if item.ego == st.partner:
+            raise UserError(f"The partner and {label.lower()} are the same armature; pick another partner")
+        if item.ego.name in seen:
+            raise UserError(f"Armature '{item.ego.name}' is used twice among the egos and the target; "
+                            "give each ego its own armature")
+        seen.add(item.ego.name)
+        _check_in_scene(scene, item.ego, label)
+        _check_finite_transform(item.ego, label)
+        out.append(OtherEgo(item, label, rig.EgoWriter(item.ego)))
+    return out
 
 
 class FrameDriver:
-    """A running ReMoGen session bound to one scene's partner, scene collection, goal, ego and target."""
+    """Running ReMoGen egos bound to one scene's partner, scene collection, goal, egos and target."""
 
     def __init__(self, scene: bpy.types.Scene, model: Any = None, keep_frames: int | None = 600) -> None:
         st = scene.remogen
@@ -81,20 +113,24 @@ class FrameDriver:
             _check_finite_transform(st.ego, "Ego")
             self.writer = rig.EgoWriter(st.ego)
         self.target = self._make_target(scene, st) if st.target is not None else None
+        self.others = other_egos(scene)
         self.reader = self._make_reader(scene, st)
         self.model = model if model is not None else get_model()
         self.dt = 1.0 / float(getattr(self.model, "fps", 1.0 / MODEL_DT))   # seconds per model frame
         rt = runtime()
-        self.session = rt.ReactionSession(self.model, text=st.text, seed=st.seed, alpha=_alpha(st),
-                                          guidance=_guidance(st), fwsr=st.use_fwsr, scene=None,
-                                          cleanup=st.use_foot_lock, control=st.use_control)
+        self.group = rt.ReactionGroup(
+            self.model, [rt.EgoSettings(text=src.text, seed=src.seed, alpha=_alpha(src), guidance=_guidance(src),
+                                        fwsr=src.use_fwsr, cleanup=st.use_foot_lock) for src in self._sources(st)],
+            scene=None, control=st.use_control)
         root, yaw = (self.writer or self.target).start_pose()
-        self.session.reset(root_position=root, yaw=yaw)
+        starts = [(root, yaw)] + [e.writer.start_pose() for e in self.others]
+        self.group.reset(root_positions=[r for r, _ in starts], yaws=[y for _, y in starts])
         if self.target is not None:
             self.target.follow(root, yaw)
-        self._applied = _settings(st)
+        self._applied = self._all_settings(st)
         self.scene_cache = SceneCache()
-        self.frames: deque = deque(maxlen=keep_frames)   # EgoFrames, newest last
+        self.frames: deque = deque(maxlen=keep_frames)   # the first ego's EgoFrames, newest last
+        self.other_frames: deque = deque(maxlen=keep_frames)   # per model frame, the other egos' EgoFrames
         self.contact_starts: deque = deque(maxlen=keep_frames)   # per frame: (left, right) contact_start
         self._toes: dict[int, np.ndarray] = {}            # model frame -> target's (2, 3) world toes there
         self.first_index = 0                              # model index of frames[0]
@@ -105,8 +141,8 @@ class FrameDriver:
 
     @property
     def posed_objects(self) -> list[bpy.types.Object]:
-        """The armatures this driver poses: the ego, the target, or both."""
-        return [w.object for w in (self.writer, self.target) if w is not None]
+        """The armatures this driver poses: the ego, the target, or both, and the other egos."""
+        return [w.object for w in (self.writer, self.target) if w is not None] + [e.writer.object for e in self.others]
 
     # ------------------------------------------------------------------ inputs
     @staticmethod
@@ -126,24 +162,41 @@ class FrameDriver:
         _check_finite_transform(target, "Target")
         return rig.TargetWriter(target, rig.ensure_bone_map(st, target, rig.TARGET))
 
-    def _sync_settings(self, st: Any) -> None:
-        """Pass slider, text and toggle changes to the session before the next model frame.
+    def _sources(self, st: Any) -> list:
+        """Where each ego's settings are: scene.remogen for the first, its entry of the ego list for the others."""
+        return [st] + [e.source for e in self.others]
 
-        The session applies them from its next segment's diffusion (within 0.8 s of model time); FWSR
+    def _all_settings(self, st: Any) -> tuple:
+        return tuple(_settings(src) for src in self._sources(st)) + (st.use_foot_lock, st.use_control)
+
+    def _sync_settings(self, st: Any) -> None:
+        """Pass slider, text and toggle changes to the egos before the next model frame.
+
+        The runtime applies them from its next segment's diffusion (within 0.8 s of model time); FWSR
         still reacts to the partner every frame."""
-        now = _settings(st)
+        self._check_ego_list(st)
+        now = self._all_settings(st)
         if now == self._applied:
             return
-        s = self.session
-        if st.text != s.text:
-            s.text = st.text
-        s.alpha = _alpha(st)
-        s.guidance = _guidance(st)
-        s.fwsr = st.use_fwsr
-        s.cleanup = st.use_foot_lock
-        s.control = st.use_control
-        # a new seed only matters for a new run (live restarts, bake resets); the session keeps its own
+        for src, ego in zip(self._sources(st), self.group.egos):
+            if src.text != ego.text:
+                ego.text = src.text
+            ego.alpha = _alpha(src)
+            ego.guidance = _guidance(src)
+            ego.fwsr = src.use_fwsr
+            ego.cleanup = st.use_foot_lock
+        self.group.control = st.use_control
+        # a new seed only matters for a new run (live restarts, bake resets); the egos keep their own
         self._applied = now
+
+    def _check_ego_list(self, st: Any) -> None:
+        """The egos are fixed for a run: an entry added, removed or pointed elsewhere needs a new start."""
+        try:
+            same = [item.ego for item in st.egos] == [e.writer.object for e in self.others]
+        except ReferenceError:
+            same = False
+        if not same:
+            raise UserError("The ego list changed; start Live or the bake again to include the change")
 
     def _partner(self, scene: bpy.types.Scene, st: Any, depsgraph: bpy.types.Depsgraph) -> np.ndarray:
         try:
@@ -176,19 +229,22 @@ class FrameDriver:
 
     # ------------------------------------------------------------------ stepping
     def step(self, scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> Any:
-        """Advance one model frame with the partner, goal and scene as they are now."""
+        """Advance one model frame with the partner, goal and scene as they are now; the first ego's frame."""
         t0 = time.perf_counter()
         st = scene.remogen
         self._sync_settings(st)
-        for what, w in (("Ego", self.writer), ("Target", self.target)):
+        posed = [("Ego", self.writer), ("Target", self.target)] + [(e.label, e.writer) for e in self.others]
+        for what, w in posed:
             if w is not None and not _in_scene(scene, w.object):
                 raise UserError(f"{what} '{w.name}' was deleted or is no longer in the scene; "
-                                f"pick {'or create an ego' if what == 'Ego' else 'a target'} and start again")
+                                f"pick {'a target' if what == 'Target' else 'or create an ego'} and start again")
         partner = self._partner(scene, st, depsgraph)
         goal = self._goal(st, depsgraph)
-        self.session.scene = self.scene_cache.grid(st.scene_collection, depsgraph)
-        frame = self._model_step(partner, goal)
+        self.group.scene = self.scene_cache.grid(st.scene_collection, depsgraph)
+        frames = self._model_step(partner, goal)
+        frame = frames[0]
         self.frames.append(frame)
+        self.other_frames.append(frames[1:])
         prev = self.contact_starts[-1] if self.contact_starts else (-1, -1)
         self.contact_starts.append(tuple((prev[s] if prev[s] >= 0 else frame.index) if frame.contacts[s] else -1
                                          for s in range(2)))
@@ -196,39 +252,41 @@ class FrameDriver:
         self.step_ms = (time.perf_counter() - t0) * 1e3
         return frame
 
-    def _model_step(self, partner: np.ndarray, goal: np.ndarray | None) -> Any:
-        """session.step(), stopping at the first non-finite output with its cause named."""
+    def _model_step(self, partner: np.ndarray, goal: np.ndarray | None) -> list:
+        """One step of every ego (group.step()), stopping at the first non-finite output with its cause named."""
         index = self.latest_index + 1
         try:
-            frame = self.session.step(partner=partner, goal=goal)
+            frames = self.group.step(partner=partner, goals=[goal] * len(self.group.egos))
         except _RT.RemogenError:
-            # A non-finite pose inside the session can surface as a later input check (the scene
+            # A non-finite pose inside the runtime can surface as a later input check (the scene
             # sample's ego transform): name the real cause when there is one.
             cause = _bad_weights(self.model)
             if cause is None:
                 raise
             raise UserError(_nonfinite_message(index, cause)) from None
-        if not all(np.isfinite(a).all() for a in (frame.joints, frame.root, frame.local_rotations)):
-            cause = _bad_weights(self.model) or (f"with guidance {self.session.guidance:g}; lower the guidance "
-                                                 "or check the model file")
-            raise UserError(_nonfinite_message(index, cause))
-        return frame
+        for ego, frame in zip(self.group.egos, frames):
+            if not all(np.isfinite(a).all() for a in (frame.joints, frame.root, frame.local_rotations)):
+                cause = _bad_weights(self.model) or (f"with guidance {ego.guidance:g}; lower the guidance "
+                                                     "or check the model file")
+                raise UserError(_nonfinite_message(index, cause))
+        return frames
 
     @property
     def latest_index(self) -> int:
         return self.frames[-1].index if self.frames else -1
 
-    def pose_at(self, model_time: float) -> Pose:
-        """The pose at one model time already generated (live and frame-change; see poses_at)."""
-        p = self.poses_at(np.array([model_time]))
+    def pose_at(self, model_time: float, ego: int = 0) -> Pose:
+        """The pose of one ego (0: the first) at one model time already generated (live and frame-change;
+        see poses_at)."""
+        p = self.poses_at(np.array([model_time]), ego)
         return Pose(p.pelvis[0], p.local_rotations[0], p.frame[0], p.planted[0], p.contact_start[0])
 
-    def poses_at(self, model_times: np.ndarray) -> Pose:
-        """Poses at model times already generated, clamped to the frames kept: pelvis (T, 3), local_rotations
-        (T, 22, 4). Between two model frames the pelvis is blended linearly and the rotations by slerp; live,
-        frame-change and bake all go through here, so a bake's keys are what live shows. A foot is planted
-        between two model frames that both have it planted, and fades out between its last planted model
-        frame and the next."""
+    def poses_at(self, model_times: np.ndarray, ego: int = 0) -> Pose:
+        """Poses of one ego (0: the first) at model times already generated, clamped to the frames kept: pelvis
+        (T, 3), local_rotations (T, 22, 4). Between two model frames the pelvis is blended linearly and the
+        rotations by slerp; live, frame-change and bake all go through here, so a bake's keys are what live
+        shows. A foot is planted between two model frames that both have it planted, and fades out between
+        its last planted model frame and the next (the first ego's contacts: the ones the target follows)."""
         x = np.asarray(model_times, dtype=np.float64) / self.dt
         k0 = np.floor(x + _EPS).astype(np.int64)
         a = np.clip(x - k0, 0.0, 1.0)
@@ -236,8 +294,9 @@ class FrameDriver:
         hi = np.clip(k0 + 1 - self.first_index, 0, len(self.frames) - 1)
         a = np.where((hi == lo) | (a <= _EPS), 0.0, a)
         need, where = np.unique(np.concatenate((lo, hi)), return_inverse=True)   # stack only these frames
-        pel = np.stack([self.frames[i].root[:3, 3] for i in need]).astype(np.float64)
-        rot = np.stack([self.frames[i].local_rotations for i in need]).astype(np.float64)
+        egos = [self.frames[i] if ego == 0 else self.other_frames[i][ego - 1] for i in need]
+        pel = np.stack([f.root[:3, 3] for f in egos]).astype(np.float64)
+        rot = np.stack([f.local_rotations for f in egos]).astype(np.float64)
         i0, i1 = where[:len(lo)], where[len(lo):]
         p = (1.0 - a)[:, None] * pel[i0] + a[:, None] * pel[i1]
         q = _RT.qslerp(rot[i0], rot[i1], a[:, None, None])
@@ -253,7 +312,8 @@ class FrameDriver:
 
     def update(self, scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None,
                model_time: float | None = None, write: bool = True) -> Pose:
-        """THE per-frame function: generate the model frames up to the time shown, then pose the ego.
+        """THE per-frame function: generate the model frames up to the time shown, then pose the egos (and the
+        target). Returns the first ego's pose.
 
         model_time None (live): follow the scene clock; a backward jump, or a forward jump of more than
         MAX_CATCH_UP seconds, continues from the ego's current pose instead of replaying or fast-forwarding.
@@ -271,7 +331,7 @@ class FrameDriver:
             self.step(scene, depsgraph)
         pose = self.pose_at(model_time)
         if write:   # the bake keys all frames at the end instead
-            self._write(pose)
+            self._write(pose, model_time)
         self.last_time = model_time
         self.update_ms = (time.perf_counter() - t0) * 1e3
         return pose
@@ -283,21 +343,29 @@ class FrameDriver:
         return self.update(scene, depsgraph)
 
     def show_latest(self) -> None:
-        """Pose the ego again as the last update() did (after something else posed it)."""
+        """Pose the egos again as the last update() did (after something else posed them)."""
         if self.frames:
-            self._write(self.pose_at(self.last_time))
+            self._write(self.pose_at(self.last_time), self.last_time)
 
-    def _write(self, pose: Pose) -> None:
+    def _write(self, pose: Pose, model_time: float) -> None:
+        """Pose the first ego and the target from `pose`, and the other egos at `model_time`; every armature's
+        channels are checked before any is written."""
+        writes = []
         if self.writer is not None:
             loc, rot = self.writer.pose_channels(pose.pelvis, pose.local_rotations)
-            self._check_channels("Ego", self.writer.name, loc, rot)
-            self.writer.write_channels(loc, rot)
+            writes.append(("Ego", self.writer, loc, rot))
         if self.target is not None:
             batch = Pose(pose.pelvis[None], pose.local_rotations[None], np.atleast_1d(pose.frame),
                          pose.planted[None], pose.contact_start[None])
             loc, rot = self.target_channels(batch)
-            self._check_channels("Target", self.target.name, loc, rot)
-            self.target.write_channels(loc[0], rot[0])
+            writes.append(("Target", self.target, loc[0], rot[0]))
+        for k, e in enumerate(self.others, start=1):
+            p = self.pose_at(model_time, k)
+            writes.append((e.label, e.writer, *e.writer.pose_channels(p.pelvis, p.local_rotations)))
+        for what, w, loc, rot in writes:
+            self._check_channels(what, w.name, loc, rot)
+        for _what, w, loc, rot in writes:
+            w.write_channels(loc, rot)
 
     def _check_channels(self, what: str, name: str, loc: np.ndarray, rot: np.ndarray) -> None:
         if not (np.isfinite(loc).all() and np.isfinite(rot).all()):   # never a NaN on the rig
@@ -306,7 +374,7 @@ class FrameDriver:
 
     def target_channels(self, poses: Pose) -> tuple[np.ndarray, np.ndarray]:
         """The target's channels for a batch of poses (rig/target.py), planted toes pinned when Plant Feet is on."""
-        if not self.session.cleanup:
+        if not self.group.egos[0].cleanup:
             return self.target.pose_channels(poses.pelvis, poses.local_rotations)
         pinned = poses.planted >= 1.0
         fading = (poses.planted > 0.0) & ~pinned
@@ -333,8 +401,9 @@ class FrameDriver:
         return np.where((frames >= 0)[..., None], picked, np.nan)
 
     def restore_rest(self) -> None:
-        if self.writer is not None:
-            self.writer.write_rest()
+        for w in [self.writer] + [e.writer for e in self.others]:
+            if w is not None:
+                w.write_rest()
 
 
 def _in_scene(scene: bpy.types.Scene, ob: bpy.types.Object) -> bool:
@@ -362,16 +431,16 @@ def _nonfinite_message(index: int, cause: str) -> str:
     return f"The model produced non-finite joints at model frame {index} ({cause}); nothing was written"
 
 
-def _guidance(st: Any) -> float:
+def _guidance(src: Any) -> float:
     """The guidance setting; a file saved before the limit existed may hold any value."""
-    g = float(st.guidance)
+    g = float(src.guidance)
     if not 0.0 <= g <= GUIDANCE_MAX:
         raise UserError(f"Guidance {g:g} is out of range: set it between 0 and {GUIDANCE_MAX:g}")
     return g
 
 
-def _alpha(st: Any) -> dict[str, float]:
-    return {"hhi": float(st.alpha_hhi), "hsi": float(st.alpha_hsi)}
+def _alpha(src: Any) -> dict[str, float]:
+    return {"hhi": float(src.alpha_hhi), "hsi": float(src.alpha_hsi)}
 
 
 def _check_position(p: np.ndarray, what: str) -> None:

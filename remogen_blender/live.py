@@ -59,7 +59,10 @@ def status_line() -> str:
     if _state is None:
         return _message
     d = _state.driver
-    return f"ReMoGen live: {d.update_ms:.1f} ms/frame (model step {d.step_ms:.1f} ms), model frame {d.latest_index}"
+    egos = len(d.group.egos)
+    many = f", {egos} egos" if egos > 1 else ""
+    return (f"ReMoGen live: {d.update_ms:.1f} ms/frame (model step {d.step_ms:.1f} ms{many}), "
+            f"model frame {d.latest_index}")
 
 
 def start(context: bpy.types.Context) -> LiveState:

@@ -1,4 +1,5 @@
-"""Operators: create the ego, live start/stop, bake, and bone-map editing. Each reports one line on failure."""
+"""Operators: create the ego, the ego list, live start/stop, bake, and bone-map editing. Each reports one line
+on failure."""
 import bpy
 from bpy.props import BoolProperty, IntProperty
 
@@ -30,6 +31,63 @@ class REMOGEN_OT_create_ego(bpy.types.Operator):
             return _fail(self, exc)
         context.scene.remogen.ego = ob
         self.report({'INFO'}, f"Created ego '{ob.name}'")
+        return {'FINISHED'}
+
+
+EGO_SPACING = 1.0   # m along +X between egos added at the 3D cursor, so that they do not start inside each other
+
+
+class REMOGEN_OT_ego_add(bpy.types.Operator):
+    """Add an ego to the list: a new SMPL-X ego armature next to the 3D cursor, with its own settings"""
+    bl_idname = "remogen.ego_add"
+    bl_label = "Add Ego"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    create: BoolProperty(name="Create Armature", default=True,
+                         description="Create an SMPL-X ego armature for the entry (off: pick one yourself)")
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        from .preferences import get_prefs
+        st = context.scene.remogen
+        ob = None
+        if self.create:
+            prefs = get_prefs()
+            cursor = context.scene.cursor.location
+            place = (cursor.x + EGO_SPACING * (len(st.egos) + 1), cursor.y, cursor.z)
+            try:
+                ob = rig.create_ego(context, name="SMPLX_Ego", location=place,
+                                    smplx_folder=prefs.smplx_folder if prefs else "")
+            except remogen_errors() as exc:
+                return _fail(self, exc)
+        item = st.egos.add()
+        item.ego = ob
+        item.seed = len(st.egos)        # another seed than the first ego's, so that they do not move alike
+        st.ego_index = len(st.egos) - 1
+        self.report({'INFO'}, f"Added ego {len(st.egos) + 1}" + (f" '{ob.name}'" if ob is not None else ""))
+        return {'FINISHED'}
+
+
+class REMOGEN_OT_ego_remove(bpy.types.Operator):
+    """Remove the selected ego from the list (its armature stays in the file)"""
+    bl_idname = "remogen.ego_remove"
+    bl_label = "Remove Ego"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        st = context.scene.remogen
+        return 0 <= st.ego_index < len(st.egos)
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        st = context.scene.remogen
+        if not 0 <= st.ego_index < len(st.egos):
+            self.report({'ERROR'}, "Select an ego of the list first")
+            return {'CANCELLED'}
+        ob = st.egos[st.ego_index].ego
+        st.egos.remove(st.ego_index)
+        st.ego_index = min(st.ego_index, len(st.egos) - 1)
+        kept = f"; armature '{ob.name}' kept" if ob is not None else ""
+        self.report({'INFO'}, f"Removed the ego from the list{kept}")
         return {'FINISHED'}
 
 
@@ -303,7 +361,8 @@ class REMOGEN_OT_bone_from_active(bpy.types.Operator):
         return {'FINISHED'}
 
 
-CLASSES = (REMOGEN_OT_create_ego, REMOGEN_OT_live_start, REMOGEN_OT_live_stop, REMOGEN_OT_bake,
+CLASSES = (REMOGEN_OT_create_ego, REMOGEN_OT_ego_add, REMOGEN_OT_ego_remove, REMOGEN_OT_live_start,
+           REMOGEN_OT_live_stop, REMOGEN_OT_bake,
            REMOGEN_OT_guess_bone_map, REMOGEN_OT_bone_from_active)
 
 

@@ -42,6 +42,33 @@ class REMOGEN_UL_bone_map(bpy.types.UIList):
         split.prop(item, "bone", text="", emboss=True)
 
 
+class REMOGEN_UL_egos(bpy.types.UIList):
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
+        row = layout.row(align=True)
+        row.alert = item.ego is None
+        split = row.split(factor=0.45)
+        split.label(text=f"{index + 2}. {item.ego.name if item.ego is not None else '(no armature)'}",
+                    icon='ARMATURE_DATA')
+        split.label(text=item.text)
+
+
+def draw_ego_settings(layout: bpy.types.UILayout, src) -> bpy.types.UILayout:
+    """The settings of one ego (scene.remogen for the first, an entry of the ego list for the others); returns
+    the row of toggles, for the first ego's scene-wide toggles to join."""
+    col = layout.column(align=True)
+    col.prop(src, "text", text="")
+    text_note = _runtime.api().prompt_warning(src.text)   # torch-free: shown before PyTorch is installed too
+    if text_note:
+        col.label(text=text_note, icon='ERROR')
+    col.prop(src, "alpha_hhi", slider=True)
+    col.prop(src, "alpha_hsi", slider=True)
+    col.prop(src, "guidance")
+    row = col.row(align=True)
+    row.prop(src, "seed")
+    row.prop(src, "use_fwsr", toggle=True)
+    return row
+
+
 class REMOGEN_PT_main(bpy.types.Panel):
     bl_label = "ReMoGen"
     bl_idname = "REMOGEN_PT_main"
@@ -78,17 +105,7 @@ class REMOGEN_PT_main(bpy.types.Panel):
             col.prop(st, "target_mode", text="")
             _map_summary(col, st, st.target, rig.TARGET)
 
-        col = layout.column(align=True)
-        col.prop(st, "text", text="")
-        text_note = _runtime.api().prompt_warning(st.text)   # torch-free: shown before PyTorch is installed too
-        if text_note:
-            col.label(text=text_note, icon='ERROR')
-        col.prop(st, "alpha_hhi", slider=True)
-        col.prop(st, "alpha_hsi", slider=True)
-        col.prop(st, "guidance")
-        row = col.row(align=True)
-        row.prop(st, "seed")
-        row.prop(st, "use_fwsr", toggle=True)
+        row = draw_ego_settings(layout, st)
         row.prop(st, "use_foot_lock", toggle=True)
         row.prop(st, "use_control", toggle=True)
 
@@ -105,6 +122,31 @@ class REMOGEN_PT_main(bpy.types.Panel):
         line = live.status_line()
         if line:
             layout.label(text=line, icon='ERROR' if line.startswith("Live stopped:") else 'INFO')
+
+
+class REMOGEN_PT_egos(bpy.types.Panel):
+    """More egos: each with its own armature and settings, reacting to the nearest other character."""
+    bl_label = "More Egos"
+    bl_idname = "REMOGEN_PT_egos"
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "ReMoGen"
+    bl_parent_id = "REMOGEN_PT_main"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context: bpy.types.Context) -> None:
+        st = context.scene.remogen
+        layout = self.layout
+        row = layout.row()
+        row.template_list("REMOGEN_UL_egos", "", st, "egos", st, "ego_index", rows=3)
+        col = row.column(align=True)
+        col.operator("remogen.ego_add", text="", icon='ADD')
+        col.operator("remogen.ego_remove", text="", icon='REMOVE')
+        if 0 <= st.ego_index < len(st.egos):
+            item = st.egos[st.ego_index]
+            layout.prop(item, "ego")
+            draw_ego_settings(layout, item)
+        layout.label(text="Each ego reacts to the nearest other character", icon='INFO')
 
 
 def _draw_bone_map(layout: bpy.types.UILayout, st, slot) -> None:
@@ -147,7 +189,8 @@ class REMOGEN_PT_target_bone_map(_BoneMapPanel, bpy.types.Panel):
         _draw_bone_map(self.layout, context.scene.remogen, rig.TARGET)
 
 
-CLASSES = (REMOGEN_UL_bone_map, REMOGEN_PT_main, REMOGEN_PT_bone_map, REMOGEN_PT_target_bone_map)
+CLASSES = (REMOGEN_UL_bone_map, REMOGEN_UL_egos, REMOGEN_PT_main, REMOGEN_PT_egos, REMOGEN_PT_bone_map,
+           REMOGEN_PT_target_bone_map)
 
 
 def register() -> None:

@@ -1,4 +1,5 @@
-"""`scene.remogen`: the settings an animator edits (names are the public contract) and the bone map."""
+"""`scene.remogen`: the settings an animator edits (names are the public contract), the list of further
+egos, and the bone maps."""
 import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty,
                        PointerProperty, StringProperty)
@@ -40,7 +41,35 @@ class RemogenBoneMapItem(bpy.types.PropertyGroup):
                          "bones' heads) or 'end:A' (the tail of bone A)")
 
 
-class RemogenSettings(bpy.types.PropertyGroup):
+class RemogenEgoSettings:
+    """What one ego does: the scene's first ego keeps these on `scene.remogen`, every other ego on its entry
+    of `scene.remogen.egos` (shared here so both stay alike)."""
+    text: StringProperty(
+        name="Intent", default="walk to the person and wave", description="What the ego should do")
+    alpha_hhi: FloatProperty(
+        name="Partner (HHI)", default=1.0, min=0.0, max=1.0, subtype='FACTOR',
+        description="How strongly the ego reacts to the nearest other character: the partner or another ego")
+    alpha_hsi: FloatProperty(
+        name="Scene (HSI)", default=1.0, min=0.0, max=1.0, subtype='FACTOR',
+        description="How strongly the ego reacts to the scene meshes and the goal")
+    guidance: FloatProperty(
+        name="Guidance", default=5.0, min=0.0, max=GUIDANCE_MAX, soft_max=10.0,
+        description=_GUIDANCE_HELP)
+    seed: IntProperty(
+        name="Seed", default=0, min=0, max=SEED_MAX,
+        description="Same seed and inputs give the same motion")
+    use_fwsr: BoolProperty(
+        name="FWSR", default=True, description="Frame-wise segment refinement: react within a frame")
+
+
+class RemogenEgoItem(RemogenEgoSettings, bpy.types.PropertyGroup):
+    """One more ego of the scene: its armature and its own settings."""
+    ego: PointerProperty(
+        name="Ego", type=bpy.types.Object, poll=_is_armature,
+        description="An SMPL-X ego armature (press + in the More Egos list to create one)")
+
+
+class RemogenSettings(RemogenEgoSettings, bpy.types.PropertyGroup):
     partner: PointerProperty(
         name="Partner", type=bpy.types.Object, poll=_is_armature, update=_partner_changed,
         description="The armature the ego reacts to")
@@ -63,22 +92,6 @@ class RemogenSettings(bpy.types.PropertyGroup):
                ('BOTH', "Target and ego", "Pose the ego and the target; the target does the ego's motion "
                 "from its own place and facing")),
         description="Which armatures Live and Bake pose when a target is set")
-    text: StringProperty(
-        name="Intent", default="walk to the person and wave", description="What the ego should do")
-    alpha_hhi: FloatProperty(
-        name="Partner (HHI)", default=1.0, min=0.0, max=1.0, subtype='FACTOR',
-        description="How strongly the ego reacts to the partner")
-    alpha_hsi: FloatProperty(
-        name="Scene (HSI)", default=1.0, min=0.0, max=1.0, subtype='FACTOR',
-        description="How strongly the ego reacts to the scene meshes and the goal")
-    guidance: FloatProperty(
-        name="Guidance", default=5.0, min=0.0, max=GUIDANCE_MAX, soft_max=10.0,
-        description=_GUIDANCE_HELP)
-    seed: IntProperty(
-        name="Seed", default=0, min=0, max=SEED_MAX,
-        description="Same seed and inputs give the same motion")
-    use_fwsr: BoolProperty(
-        name="FWSR", default=True, description="Frame-wise segment refinement: react within a frame")
     use_foot_lock: BoolProperty(
         name="Plant Feet", default=True,
         description="Keep a foot that touches the floor fixed there (leg IK on the generated pose)")
@@ -86,6 +99,10 @@ class RemogenSettings(bpy.types.PropertyGroup):
         name="Steer", default=True,
         description="Test-time control: steer each segment away from the partner and obstacles, toward the goal, "
                     "and against foot sliding (the alpha sliders scale the partner and scene parts)")
+
+    # More egos: each reacts to the nearest other character, partner or ego; all are stepped together.
+    egos: CollectionProperty(type=RemogenEgoItem)
+    ego_index: IntProperty(name="Ego row", default=0)
 
     # Bone map storage (shown and editable in the panel).
     bone_map: CollectionProperty(type=RemogenBoneMapItem)
@@ -101,7 +118,7 @@ class RemogenSettings(bpy.types.PropertyGroup):
         name="Mapped target", default="", description="The target object the target bone map was made for")
 
 
-CLASSES = (RemogenBoneMapItem, RemogenSettings)
+CLASSES = (RemogenBoneMapItem, RemogenEgoItem, RemogenSettings)
 
 
 def register() -> None:

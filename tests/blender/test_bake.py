@@ -213,20 +213,21 @@ def test_nan_weights_stop_bake_and_change_nothing(fresh):
 def test_bake_stops_at_the_first_non_finite_frame(fresh, monkeypatch):
     """Whatever the cause, a non-finite model frame stops the bake there and nothing is keyed."""
     import scenes
-    from model_runtime import ReactionSession
+    from model_runtime import ReactionGroup
     from remogen_blender.bake import UserError, bake
     _scene(frames=(1, 24))
-    real_step = ReactionSession.step
+    real_step = ReactionGroup.step
     made = []
 
     def step(self, *a, **kw):
-        f = real_step(self, *a, **kw)
+        frames = real_step(self, *a, **kw)
+        f = frames[0]
         made.append(f.index)
         if f.index == 5:
             f.local_rotations[3, 1] = float("inf")
-        return f
+        return frames
 
-    monkeypatch.setattr(ReactionSession, "step", step)
+    monkeypatch.setattr(ReactionGroup, "step", step)
     before = _snapshot()
     with pytest.raises(UserError, match="non-finite joints at model frame 5 .*guidance"):
         bake(bpy.context.scene)

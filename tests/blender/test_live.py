@@ -64,7 +64,7 @@ def test_slider_acts_while_running(fresh):
     bpy.context.scene.remogen.alpha_hsi = 0.25
     bpy.context.scene.remogen.text = "sit down"
     bpy.context.scene.frame_set(6)
-    s = live.state().driver.session
+    s = live.state().driver.group.egos[0]
     assert s.alpha["hsi"] == pytest.approx(0.25) and s.text == "sit down"
 
 
@@ -79,7 +79,8 @@ def test_plant_feet_and_steer_settings_reach_the_session(fresh, prop, attr):
     setattr(bpy.context.scene.remogen, prop, False)
     assert bpy.ops.remogen.live_start() == {'FINISHED'}
     bpy.context.scene.frame_set(3)
-    s = live.state().driver.session
+    group = live.state().driver.group
+    s = group if attr == "control" else group.egos[0]      # control is the group's, foot cleanup each ego's
     assert getattr(s, attr) is False
     setattr(bpy.context.scene.remogen, prop, True)
     bpy.context.scene.frame_set(5)

@@ -1,0 +1,308 @@
+"""One generated character: its settings, its rollout state and the per-ego parts of a step.
+
+A ReactionGroup (group.py) holds one `Ego` per generated character and runs the networks for all of them
+at once; everything here is the work that belongs to one ego alone: its canonical frames, the window of
+the character it reacts to, its cost targets, and turning its generated features into an EgoFrame.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+import torch
+
+from .checks import check_alpha, check_guidance, check_point, check_seed, check_text
+from .control import ControlConfig, ControlTargets, partner_future, passing_away, passing_reaches
+from .distance_field import DistanceField
+from .errors import MAX_COORD, InputError
+from .features import (ROOT_T, ROT6D, canonical_frame, feature_joints, features_from_pose, to_canonical,
+                       world_points_to_canonical)
+from .footlock import FootLock
+from .quat import matrix_to_quat_np
+from .skeleton import (NUM_JOINTS, forward_kinematics_np, quat_to_matrix, rot6d_to_matrix_np,
+                       standing_pelvis_height, yaw_matrix)
+
+
+@dataclass
+class EgoFrame:
+    """One generated frame in world space (Z-up metres)."""
+    index: int
+    joints: np.ndarray           # (22, 3) float32
+    root: np.ndarray             # (4, 4) float32 pelvis transform (global orientation + position)
+    local_rotations: np.ndarray  # (22, 4) float32 quaternions w-first; [0] = global orientation
+    contacts: np.ndarray = field(default_factory=lambda: np.zeros(2, bool))  # (left, right) foot planted
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.root[:3, 3]
+
+
+@dataclass
+class EgoSettings:
+    """What one ego of a ReactionGroup does (checked when the group is built; alpha None = all modules 1)."""
+    text: str = ""
+    seed: int = 0
+    alpha: dict | None = None
+    guidance: float = 5.0
+    fwsr: bool = True
+    cleanup: bool = True
+
+
+def frames_from_world_features(index: int, feat_world: torch.Tensor, feet: list[FootLock]) -> list[EgoFrame]:
+    """The EgoFrames of one generated frame of each ego (feat_world (B, 276)); `feet[i]` marks ego i's planted
+    feet and, when it locks, pins them. The skeleton maths runs once for all egos."""
+    f = feat_world.numpy()
+    rot = rot6d_to_matrix_np(f[:, ROT6D].reshape(-1, NUM_JOINTS, 6))
+    pelvis = f[:, ROOT_T]
+    joints, world = forward_kinematics_np(rot, pelvis, world_rotations=True)
+    contacts = np.zeros((len(f), 2), bool)
+    for i, lock in enumerate(feet):
+        mine = rot[i]
+        if np.isfinite(joints[i]).all():      # else reported as a model output problem by the caller
+            cleaned, contacts[i] = lock.apply(mine, joints[i], world[i])
+            if cleaned is not mine:           # a leg was solved: the joints follow the new rotations
+                rot[i] = cleaned
+                joints[i] = forward_kinematics_np(cleaned, pelvis[i])
+    quats = matrix_to_quat_np(rot).astype(np.float32)
+    out = []
+    for i in range(len(f)):
+        root = np.eye(4, dtype=np.float32)
+        root[:3, :3], root[:3, 3] = rot[i, 0], pelvis[i]
+        out.append(EgoFrame(index, joints[i].astype(np.float32), root, quats[i], contacts[i]))
+    return out
+
+
+def output_problem(feat_world: torch.Tensor, frame: EgoFrame) -> str | None:
+    """What is wrong with a generated frame (non-finite or absurdly far joints), or None."""
+    if not (bool(torch.isfinite(feat_world).all()) and np.isfinite(frame.joints).all()
+            and np.isfinite(frame.local_rotations).all()):
+        return "non-finite joints"
+    if not (np.abs(frame.joints) < MAX_COORD).all():
+        return f"joints beyond {MAX_COORD:.0e} m"
+    return None
+
+
+def as_transform(rot: torch.Tensor, trans: torch.Tensor) -> np.ndarray:
+    m = np.eye(4, dtype=np.float32)
+    m[:3, :3] = rot.numpy()
+    m[:3, 3] = trans.numpy()
+    return m
+
+
+PASS_FRAMES = 4    # the latest frames whose motion tells whether, and how, the ego is passing someone
+
+
+class Ego:
+    """One ego: settings that may change between steps, and the state its rollout carries from step to step."""
+
+    def __init__(self, model: Any, settings: EgoSettings) -> None:
+        if not isinstance(settings, EgoSettings):
+            raise InputError(f"each ego must be a model_runtime.EgoSettings, got {type(settings).__name__}")
+        self.model, self.cfg = model, model.cfg
+        self._feet = FootLock()
+        self.seed = settings.seed
+        self.text = settings.text
+        self.alpha = settings.alpha
+        self.guidance = settings.guidance
+        self.fwsr = settings.fwsr
+        self.cleanup = settings.cleanup
+        self.reset(self.start_history())
+
+    # ------------------------------------------------------------------ live settings
+    @property
+    def seed(self) -> int:
+        """The noise seed; used from the next reset()."""
+        return self._seed
+
+    @seed.setter
+    def seed(self, value: int) -> None:
+        self._seed = check_seed(value)
+
+    @property
+    def text(self) -> str:
+        return self._text
+
+    @text.setter
+    def text(self, value: str) -> None:
+        self._text = check_text(value)
+        self.text_emb = self.model.encode_text(value)
+        self.text_warning = self.model.text_warning(value)   # one line when the encoder cannot read it, else None
+
+    @property
+    def alpha(self) -> dict[str, float]:
+        return dict(self._alpha)
+
+    @alpha.setter
+    def alpha(self, value: dict | None) -> None:
+        self._alpha = check_alpha(value)
+
+    @property
+    def guidance(self) -> float:
+        return self._guidance
+
+    @guidance.setter
+    def guidance(self, value: float) -> None:
+        self._guidance = check_guidance(value)
+
+    @property
+    def fwsr(self) -> bool:
+        return self._fwsr
+
+    @fwsr.setter
+    def fwsr(self, value: bool) -> None:
+        self._fwsr = bool(value)
+
+    @property
+    def cleanup(self) -> bool:
+        """Planted-foot cleanup of the output (leg IK); contacts are reported either way. Next frame on."""
+        return self._feet.locks
+
+    @cleanup.setter
+    def cleanup(self, value: bool) -> None:
+        self._feet.locks = bool(value)
+
+    # ------------------------------------------------------------------ reset
+    def start_history(self, root_position: Sequence[float] = (0.0, 0.0, 0.0), yaw: float = 0.0,
+                      frame: EgoFrame | None = None, name: str = "root_position") -> torch.Tensor:
+        """The world history of a body standing at rest on `root_position` facing `yaw`, or holding `frame`.
+
+        Checks only, changes nothing: reset() applies it. yaw is in radians about +Z; yaw = 0 faces -Y.
+        """
+        if frame is not None:
+            rot = quat_to_matrix(torch.as_tensor(np.asarray(frame.local_rotations, np.float32)))
+            pelvis = torch.as_tensor(np.asarray(frame.root, np.float32)[:3, 3])
+            if rot.shape != (NUM_JOINTS, 3, 3) or not torch.isfinite(rot).all() or not torch.isfinite(pelvis).all():
+                raise InputError("reset frame must hold finite (22, 4) local_rotations and a (4, 4) root")
+        else:
+            pos = check_point(name, root_position)
+            if not math.isfinite(float(yaw)):
+                raise InputError(f"yaw must be a finite angle in radians, got {yaw!r}")
+            rot = torch.eye(3).repeat(NUM_JOINTS, 1, 1)
+            rot[0] = yaw_matrix(torch.tensor(float(yaw)))
+            pelvis = torch.as_tensor(pos) + torch.tensor([0.0, 0.0, standing_pelvis_height()])
+        h = self.cfg.history
+        # H + 1 identical frames: a body standing still (zero deltas)
+        return features_from_pose(rot.expand(h + 1, -1, -1, -1), pelvis.expand(h + 1, -1))
+
+    def reset(self, hist_world: torch.Tensor) -> None:
+        self.hist_world = hist_world
+        w = self.cfg.partner_window
+        self.cue: list = [None] * w          # the character this ego reacts to: its latest frames, oldest first
+        self.cue_id: int = -1                # which one: -1 the partner, else the index of another ego
+        self.passing: tuple[int, np.ndarray] | None = None   # (cue_id, world direction) while passing it
+        self.goal: np.ndarray | None = None
+        self.gen = torch.Generator().manual_seed(self._seed)
+        self.seg: dict | None = None         # this ego's part of the running segment
+        latest = feature_joints(hist_world[-1]).numpy().astype(np.float32)
+        self.trail: deque = deque([latest] * w, maxlen=w)   # its own latest joints, for the other egos
+        self._feet.reset()
+
+    # ------------------------------------------------------------------ a step's state
+    def snapshot(self) -> tuple:
+        """What a step changes, to undo a failed one (tensors are replaced, never changed in place)."""
+        seg = None if self.seg is None else dict(self.seg)
+        return (list(self.cue), self.cue_id, self.passing, self.goal, self.gen.get_state(), seg, self._feet.state(),
+                list(self.trail))
+
+    def restore(self, snap: tuple) -> None:
+        cue, self.cue_id, self.passing, self.goal, gen_state, self.seg, feet, trail = snap
+        self.cue = cue
+        self.gen.set_state(gen_state)
+        self._feet.set_state(feet)
+        self.trail.clear()
+        self.trail.extend(trail)
+
+    def commit(self, feat_world: torch.Tensor, frame: EgoFrame) -> None:
+        """A step succeeded: its frame joins the history (and the trail the other egos see)."""
+        self.hist_world = torch.cat((self.hist_world[1:], feat_world.unsqueeze(0)), 0)
+        self.trail.append(frame.joints.copy())   # the frame is the caller's to change
+
+    @property
+    def feet(self) -> FootLock:
+        return self._feet
+
+    # ------------------------------------------------------------------ per-ego inputs of the networks
+    def pelvis(self) -> np.ndarray:
+        """The pelvis of the latest frame (world)."""
+        return self.trail[-1][0]
+
+    def canonical_history(self, hist_world: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(rot, trans, normalised (1, H, D) history) of a history in its own canonical frame."""
+        rot, trans = canonical_frame(feature_joints(hist_world[0]))
+        return rot, trans, self.model.stats.normalize(to_canonical(hist_world, rot, trans)).unsqueeze(0)
+
+    def cue_window(self, rot: torch.Tensor, trans: torch.Tensor, n: int,
+                   hidden: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+        """The latest n frames of the character it reacts to, in a canonical frame, and which are present
+        (none when hidden)."""
+        frames = self.cue[-n:]
+        if hidden:
+            frames = [None] * len(frames)
+        present = torch.tensor([p is not None for p in frames]).unsqueeze(0)
+        pts = torch.zeros(1, n, NUM_JOINTS, 3)
+        for i, p in enumerate(frames):
+            if p is not None:
+                pts[0, i] = world_points_to_canonical(torch.from_numpy(p), rot, trans)
+        return pts, present
+
+    def _paths(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The latest pelvis positions (xy) of the ego and of the character it reacts to, oldest first; None
+        while that one is not seen in each of them."""
+        n = min(PASS_FRAMES, len(self.cue), len(self.trail))
+        other = self.cue[-n:]
+        if n < 2 or any(p is None for p in other):
+            return None
+        own = np.stack([j[0, :2] for j in list(self.trail)[-n:]]).astype(np.float64)
+        return own, np.stack([j[0, :2] for j in other]).astype(np.float64)
+
+    def pass_away(self, cc: ControlConfig) -> np.ndarray | None:
+        """Which way to keep clear of the character it reacts to, if passing it (world xy); remembered per
+        character so the side does not flip while passing. Only another ego is passed this way: two egos
+        follow the same convention, so their choices fit together; the partner follows its own animation
+        (the partner cost alone keeps the ego clear of it, as for a single ego)."""
+        paths = self._paths() if self.cue_id >= 0 else None
+        before = self.passing[1] if self.passing is not None and self.passing[0] == self.cue_id else None
+        away = None if paths is None else passing_away(*paths, before, cc)
+        self.passing = None if away is None else (self.cue_id, away)
+        return away
+
+    def passing_reaches(self, cc: ControlConfig, first: int, last: int) -> bool:
+        """Whether its pass (pass_away first) asks anything of the frames first..last from now."""
+        paths = self._paths()
+        return self.passing is not None and paths is not None and passing_reaches(*paths, self.passing[1], first,
+                                                                                   last, cc)
+
+    def occupancy(self, scene: Any, rot: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
+        occ = scene.sample_ego(as_transform(rot, trans), bounds=self.cfg.scene_bounds,
+                               resolution=self.cfg.voxel_resolution)
+        return torch.as_tensor(np.asarray(occ, np.float32)).unsqueeze(0)
+
+    def canonical_goal(self, rot: torch.Tensor, trans: torch.Tensor) -> torch.Tensor | None:
+        if self.goal is None:
+            return None
+        return world_points_to_canonical(torch.as_tensor(self.goal).view(1, 1, 3), rot, trans)[:, 0]
+
+    def control_targets(self, rot: torch.Tensor, trans: torch.Tensor, lead: int,
+                        field: Callable[[], DistanceField] | None, cc: ControlConfig,
+                        alpha: dict[str, float] | None = None) -> ControlTargets:
+        """Test-time control of one job: its costs' targets in the job's canonical frame. `field` gives the
+        scene's distance field (built on first use), None without a scene; `alpha` the alphas to steer with
+        (default: the current ones)."""
+        alpha = self._alpha if alpha is None else alpha
+        targets = ControlTargets(alpha_hhi=alpha["hhi"], alpha_hsi=alpha["hsi"])
+        if targets.alpha_hhi > 0.0:
+            window, present = self.cue_window(rot, trans, self.cfg.partner_window)
+            targets.partner, targets.partner_still = partner_future(window[0], present[0], lead + 1,
+                                                                    self.cfg.future + int(cc.look_ahead), cc)
+            away = self.pass_away(cc)
+            if away is not None and targets.partner is not None:
+                targets.pass_away = (rot[:2, :2].T @ torch.as_tensor(away, dtype=torch.float32))
+        if targets.alpha_hsi > 0.0:
+            if field is not None:
+                targets.field, targets.to_world = field(), (rot, trans)
+            if self.goal is not None:
+                targets.goal_xy = world_points_to_canonical(torch.as_tensor(self.goal).view(1, 3), rot, trans)[0, :2]
+        return targets

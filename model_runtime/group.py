@@ -1,0 +1,351 @@
+"""ReactionGroup: the online rollout of one or more egos, one 10 fps model frame per `step()`.
+
+Scheduling (why no frame ever pays for a whole diffusion): while segment i plays, the reverse
+diffusion of segment i+1 runs a step or two per frame, conditioned on segment i's *predicted* last
+frames (its canonical frame and history) and the partner/scene seen when it started. At the boundary
+the finished latent is decoded with the *real* history. A job's inputs (history, contexts, text,
+alpha, guidance) are fixed when it starts, one segment ahead of the frames shown: a change is read by
+the next job to start and shows in the segment it produces, 0.8 to 1.5 s of model time later (F = 8),
+while FWSR reacts to the partner every frame and switching FWSR on or off acts on the next frame.
+(A background thread for the diffusion was measured and rejected: with two Python threads issuing
+small torch ops, GIL contention made the job finish later than spreading it, p99 38 ms vs 9 ms.)
+With FWSR on, every frame f >= 1 of a segment re-decodes a latent refined from the latest history and
+partner frames (Algorithm 1), so reactions show up within a frame rather than at the next segment.
+`slide=True` is the paper's ablation: a full diffusion every frame. Every frame is checked before it is
+emitted: a non-finite pose raises ModelOutputError and leaves the group as it was before that step.
+
+Several egos share the schedule and go through the networks as one batch: the denoiser (with its
+classifier-free guidance pair), the context encoders, the VAE decoder, FWSR and the control's decoder
+pass and its backward run once per frame for all of them. Each ego keeps its own text, alpha, guidance,
+FWSR switch, foot cleanup and seeded generator, from which it draws its noise in the same order as it
+would alone, so a group of one gives exactly the frames of a ReactionSession.
+
+Each ego reacts to the nearest other character, by pelvis distance: the partner or another ego. That
+character's latest frames are the cue of its HHI module, its FWSR and its control's partner cost. An
+ego is seen by the others as of its latest emitted frame (egos step together, so one frame behind the
+partner).
+"""
+from __future__ import annotations
+
+from collections import deque
+from typing import Any, Sequence
+
+import numpy as np
+import torch
+
+from .checks import check_control_config, check_partner, check_point, check_scene
+from .control import ControlConfig, LatentSteer, SegmentCosts
+from .distance_field import DistanceField
+from .ego import Ego, EgoFrame, EgoSettings, frames_from_world_features, output_problem
+from .errors import InputError, ModelOutputError
+from .features import feature_joints, to_world
+from .model import Contexts, DiffusionJob, ReMoGenModel, non_finite_weight
+from .schedule import BOUNDARY_COST, STEERED_STEP_COST, steps_per_frame
+
+
+class ReactionGroup:
+    """Online reaction generation for several egos stepped as one batch. See the module docstring."""
+
+    def __init__(self, model: ReMoGenModel, egos: Sequence[EgoSettings], scene: Any = None, slide: bool = False,
+                 control: bool = True, control_config: ControlConfig | None = None) -> None:
+        if isinstance(egos, EgoSettings) or not isinstance(egos, Sequence) or len(egos) == 0:
+            raise InputError("egos must be a non-empty list of model_runtime.EgoSettings, one per ego")
+        self.model = model.eval()
+        self.cfg = model.cfg
+        self.egos: list[Ego] = [Ego(self.model, s) for s in egos]
+        self.control = control
+        self.control_config = control_config if control_config is not None else ControlConfig()
+        self._field: tuple[Any, DistanceField] | None = None   # (grid, its distance field), built on first use
+        self.slide = bool(slide)
+        self.scene = scene
+        self._job: DiffusionJob | None = None
+        self.reset()
+
+    # ------------------------------------------------------------------ settings shared by every ego
+    @property
+    def control(self) -> bool:
+        """Test-time control (control.py): steer each segment with cost gradients. From the next segment on."""
+        return self._control
+
+    @control.setter
+    def control(self, value: bool) -> None:
+        self._control = bool(value)
+
+    @property
+    def control_config(self) -> ControlConfig:
+        return self._control_config
+
+    @control_config.setter
+    def control_config(self, value: ControlConfig) -> None:
+        self._control_config = check_control_config(value)
+
+    @property
+    def scene(self) -> Any:
+        return self._scene
+
+    @scene.setter
+    def scene(self, value: Any) -> None:
+        self._scene = check_scene(value)
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, root_positions: Sequence | None = None, yaws: Sequence[float] | None = None,
+              frames: Sequence[EgoFrame | None] | None = None) -> None:
+        """Start over: each ego standing at rest on its floor point facing its yaw, or from its frame.
+
+        One entry per ego in each list given; defaults: the origin, yaw 0 (facing -Y). Bad input changes
+        nothing.
+        """
+        n = len(self.egos)
+        positions = self._per_ego("root_positions", root_positions, (0.0, 0.0, 0.0))
+        angles = self._per_ego("yaws", yaws, 0.0)
+        starts = self._per_ego("frames", frames, None)
+        name = "root_position" if n == 1 else "root_positions[{}]"
+        hists = [e.start_history(p, y, f, name.format(i))
+                 for i, (e, p, y, f) in enumerate(zip(self.egos, positions, angles, starts))]
+        for e, h in zip(self.egos, hists):
+            e.reset(h)
+        w = self.cfg.partner_window
+        self._partner: deque = deque([None] * w, maxlen=w)
+        self._seg: dict | None = None
+        self._job = None
+        self._index = 0
+
+    def _per_ego(self, name: str, values: Sequence | None, default: Any) -> list:
+        if values is None:
+            return [default] * len(self.egos)
+        if isinstance(values, (str, bytes)) or not hasattr(values, "__len__") or len(values) != len(self.egos):
+            raise InputError(f"{name} must hold one entry per ego ({len(self.egos)}), or be None")
+        return list(values)
+
+    # ------------------------------------------------------------------ stepping
+    @torch.no_grad()     # not inference_mode: test-time control takes gradients inside a step
+    def step(self, partner: Any = None, goals: Sequence | None = None) -> list[EgoFrame]:
+        """Advance every ego one model frame (0.1 s); returns their frames in ego order.
+
+        partner: (22, 3) world joints or None; goals: one (x, y, z) or None per ego, or None for none.
+        Raises InputError for bad inputs and ModelOutputError for a non-finite pose; either way the group is
+        left exactly as before the call.
+        """
+        p = check_partner(partner)
+        targets = [check_point("goal" if len(self.egos) == 1 else f"goals[{i}]", g)
+                   for i, g in enumerate(self._per_ego("goals", goals, None))]
+        before = self._snapshot()
+        try:
+            self._partner.append(p)
+            cues = [self._nearest(i) for i in range(len(self.egos))]
+            for e, g, (who, cue) in zip(self.egos, targets, cues):
+                e.goal, e.cue_id, e.cue = g, who, cue
+            feats = self._slide_frames() if self.slide else self._segment_frames()
+            with np.errstate(over="ignore", invalid="ignore"):   # a broken frame is reported just below
+                out = frames_from_world_features(self._index, torch.stack(feats), [e.feet for e in self.egos])
+            for i, (feat, frame) in enumerate(zip(feats, out)):
+                problem = output_problem(feat, frame)
+                if problem:
+                    raise ModelOutputError(self._output_error(i, problem))
+        except BaseException:   # also KeyboardInterrupt: a half-done step must not stay behind
+            self._restore(before)
+            raise
+        for e, feat, frame in zip(self.egos, feats, out):
+            e.commit(feat, frame)
+        self._index += 1
+        return out
+
+    def _nearest(self, i: int) -> tuple[int, list]:
+        """Ego i's cue: (-1 for the partner or the index of an ego, its latest frames) of the nearest other
+        character by pelvis distance (the partner's window, gaps included, when no one else is there)."""
+        me = self.egos[i].pelvis()
+        who, window, best = -1, list(self._partner), np.inf
+        if self._partner[-1] is not None:
+            best = float(np.linalg.norm(self._partner[-1][0] - me))
+        for j, other in enumerate(self.egos):
+            if j != i:
+                d = float(np.linalg.norm(other.pelvis() - me))
+                if d < best:
+                    who, window, best = j, list(other.trail), d
+        return who, window
+
+    def _output_error(self, i: int, problem: str) -> str:
+        who = f"ego {i}: " if len(self.egos) > 1 else ""
+        where = f"{who}the model produced {problem} at frame {self._index}"
+        bad = non_finite_weight(self.model.state_dict())
+        if bad is not None:
+            return f"{where}: its weight {bad} holds NaN or inf; load an intact model file"
+        e = self.egos[i]
+        return (f"{where} with guidance {e.guidance:g} and alpha {e.alpha}; lower the guidance or alpha, "
+                "or reset the session")
+
+    def _snapshot(self) -> tuple:
+        seg = None if self._seg is None else dict(self._seg)
+        job = None if self._job is None else (self._job, self._job.snapshot())
+        return list(self._partner), seg, job, [e.snapshot() for e in self.egos]
+
+    def _restore(self, snap: tuple) -> None:
+        partner, self._seg, job, egos = snap
+        self._partner.clear()
+        self._partner.extend(partner)
+        for e, s in zip(self.egos, egos):
+            e.restore(s)
+        self._job = None
+        if job is not None:
+            self._job = job[0]
+            self._job.restore(job[1])
+
+    def _segment_frames(self) -> list[torch.Tensor]:
+        seg, cfg = self._seg, self.cfg
+        if seg is None or seg["f"] >= cfg.future:
+            job = self._finish_job()
+            seg = self._seg = self._start_segment(job)
+            predicted = [to_world(self.model.stats.denormalize(seg["future"][i, -cfg.history:]),
+                                  e.seg["rot"], e.seg["trans"]) for i, e in enumerate(self.egos)]
+            self._job = self._new_job(predicted, lead=cfg.future)
+        f = seg["f"]
+        if f == 0:
+            job = self._job
+            seam = self._control_config.seam_steers if self._control else 0
+            seg["steps_at"] = steps_per_frame(job.total_steps, cfg.future, job.steered_steps + job.final_steers,
+                                              BOUNDARY_COST + seam * STEERED_STEP_COST)
+        if f >= 1 and self._control:
+            self._steer_playing(f)
+        feats_n = [seg["future"][i, f] for i in range(len(self.egos))]
+        refined = [i for i, e in enumerate(self.egos) if e.fwsr] if f >= 1 else []
+        if refined:
+            for k, feat in zip(refined, self._refine(refined, f)):
+                feats_n[k] = feat
+        for e, feat in zip(self.egos, feats_n):
+            e.seg["emitted"] = torch.cat((e.seg["emitted"], feat.unsqueeze(0)), 0)
+        self._job.advance(seg["steps_at"][f])
+        seg["f"] = f + 1
+        return [to_world(self.model.stats.denormalize(feat).unsqueeze(0), e.seg["rot"], e.seg["trans"])[0]
+                for e, feat in zip(self.egos, feats_n)]
+
+    def _steer_playing(self, f: int) -> None:
+        """An ego passing someone also steers the segment it is playing, a step each frame with the latest cue:
+        the segment that sees the other coming is otherwise decided a segment ahead, too late to step aside.
+        With the alphas the segment was made with: a slider moved since acts from the next segment on."""
+        seg, cc = self._seg, self._control_config
+        field = self._distance_field if self._scene is not None else None
+        rows, targets = [], []
+        last = self.cfg.future - 1 + int(cc.look_ahead) - f      # the segment's frames to play and its look-ahead
+        for i, e in enumerate(self.egos):
+            alpha = e.seg["alpha"]
+            if alpha["hhi"] > 0.0 and e.pass_away(cc) is not None and e.passing_reaches(cc, 0, last):
+                t = e.control_targets(e.seg["rot"], e.seg["trans"], -f, field, cc, alpha)
+                if t.pass_away is not None:
+                    rows.append(i)
+                    targets.append(t)
+        if not rows:
+            return
+        hist_n = seg["hist_n"][rows]
+        steer = LatentSteer(self.model, hist_n, SegmentCosts(self.model.stats, hist_n, targets, cc), cc)
+        z0 = seg["z0"].clone()
+        z0[rows] = steer(seg["z0"][rows])
+        seg["z0"] = z0
+        plain = [i for i in rows if not self.egos[i].fwsr]    # FWSR decodes the steered latent itself
+        if plain:
+            future = seg["future"].clone()
+            future[plain] = self.model.decode(seg["hist_n"][plain], z0[plain])
+            seg["future"] = future
+
+    def _refine(self, rows: list[int], f: int) -> list[torch.Tensor]:
+        """FWSR for frame f of the segment, for the egos in `rows`: their normalised canonical features."""
+        seg, h = self._seg, self.cfg.history
+        recent, partner, present = [], [], []
+        for i in rows:
+            e = self.egos[i]
+            # the latest H emitted frames, already canonical and normalised in this segment's frame
+            recent.append(e.seg["emitted"][-h:].unsqueeze(0))
+            # alpha_HHI = 0 means "ignore the partner": FWSR's refiner reads partner frames too, so it sees
+            # none (measured: with them it turned a prior-only ego toward the partner)
+            p, m = e.cue_window(e.seg["rot"], e.seg["trans"], h, hidden=e.alpha["hhi"] == 0.0)
+            partner.append(p)
+            present.append(m)
+        every = len(rows) == len(self.egos)
+        z0 = seg["z0"] if every else seg["z0"][rows]
+        hist_n = seg["hist_n"] if every else seg["hist_n"][rows]
+        z = self.model.refine(z0, torch.cat(recent), torch.cat(partner), torch.cat(present), f)
+        decoded = self.model.decode(hist_n, z)
+        return [decoded[k, f] for k in range(len(rows))]
+
+    def _finish_job(self) -> DiffusionJob:
+        """The finished diffusion for the segment about to start (all of it now after a reset)."""
+        job = self._job if self._job is not None else self._new_job([e.hist_world for e in self.egos], lead=0)
+        job.advance(job.total_steps)  # a no-op when the spread schedule already finished it
+        self._job = None
+        return job
+
+    def _slide_frames(self) -> list[torch.Tensor]:
+        job = self._new_job([e.hist_world for e in self.egos], lead=0)
+        job.advance(job.total_steps)
+        seg = self._start_segment(job)
+        return [to_world(self.model.stats.denormalize(seg["future"][i, :1]), e.seg["rot"], e.seg["trans"])[0]
+                for i, e in enumerate(self.egos)]
+
+    def _start_segment(self, job: DiffusionJob) -> dict:
+        """Decode a finished job's latents with each ego's real history in its own canonical frame. The
+        segment's steering, here and while it plays, uses the alphas the job was made with."""
+        z0 = job.result
+        canon = [e.canonical_history(e.hist_world) for e in self.egos]
+        hist_n = torch.cat([c[2] for c in canon])
+        cc = self._control_config
+        if self._control and cc.seam_steers and self.cfg.history >= 2:
+            # the latent was made for a predicted history: join it to the real one without a jump, still
+            # under the same costs (its first frame plays now)
+            made = feature_joints(self.model.stats.denormalize(self.model.decode(hist_n, z0)))
+            steer = self._steer(hist_n, canon, lead=0, keep=made, step_size=cc.seam_step_size, alphas=job.alpha)
+            for _ in range(cc.seam_steers):
+                z0 = steer(z0)
+        for e, (rot, trans, h), alpha in zip(self.egos, canon, job.alpha):
+            e.seg = {"rot": rot, "trans": trans, "emitted": h[0], "alpha": alpha}
+        return {"hist_n": hist_n, "z0": z0, "future": self.model.decode(hist_n, z0), "f": 0}
+
+    def _new_job(self, hist_worlds: list[torch.Tensor], lead: int) -> DiffusionJob:
+        """A diffusion job for the segments that start after `hist_worlds` (real or predicted, one per ego),
+        whose first frame plays `lead` frames after the latest partner frame."""
+        canon = [e.canonical_history(h) for e, h in zip(self.egos, hist_worlds)]
+        hist_n = torch.cat([c[2] for c in canon])
+        contexts = self._encode_contexts(canon)
+        cc = self._control_config
+        steer = self._steer(hist_n, canon, lead) if self._control else None
+        egos = self.egos
+        return DiffusionJob(self.model, hist_n, torch.cat([e.text_emb for e in egos]), contexts,
+                            [e.alpha for e in egos], [e.guidance for e in egos], [e.gen for e in egos],
+                            steer=steer, steered_steps=cc.steered_steps, final_steers=cc.final_steers)
+
+    def _steer(self, hist_n: torch.Tensor, canon: list[tuple], lead: int, keep: torch.Tensor | None = None,
+               step_size: float | None = None, alphas: list[dict] | None = None) -> LatentSteer:
+        """Test-time control of a job (or of a boundary, with `keep`): each ego's cost targets in its canonical
+        frame, with `alphas` (default: the egos' current ones)."""
+        cc = self._control_config
+        field = self._distance_field if self._scene is not None else None
+        alphas = alphas if alphas is not None else [None] * len(self.egos)
+        targets = [e.control_targets(rot, trans, lead, field, cc, a)
+                   for e, (rot, trans, _), a in zip(self.egos, canon, alphas)]
+        return LatentSteer(self.model, hist_n, SegmentCosts(self.model.stats, hist_n, targets, cc, keep=keep), cc,
+                           step_size=step_size)
+
+    def _distance_field(self) -> DistanceField:
+        """The scene's distance field, built once per grid (a grid never changes once built)."""
+        if self._field is None or self._field[0] is not self._scene:
+            self._field = (self._scene, DistanceField(self._scene))
+        return self._field[1]
+
+    def _encode_contexts(self, canon: list[tuple]) -> Contexts:
+        cues = [e.cue_window(rot, trans, self.cfg.partner_window) for e, (rot, trans, _) in zip(self.egos, canon)]
+        occupancy = None
+        if self._scene is not None:
+            occupancy = torch.cat([e.occupancy(self._scene, rot, trans) for e, (rot, trans, _) in zip(self.egos, canon)])
+        goals = [e.canonical_goal(rot, trans) for e, (rot, trans, _) in zip(self.egos, canon)]
+        goal = has_goal = None
+        if any(g is not None for g in goals):
+            goal = torch.cat([g if g is not None else torch.zeros(1, 3) for g in goals])
+            if any(g is None for g in goals):
+                has_goal = torch.tensor([g is not None for g in goals])
+        # Only the modules a job uses: a job keeps the alpha it starts with, so a slider moved
+        # mid-segment takes effect from the next segment's diffusion (module docstring).
+        return self.model.encode_contexts(torch.cat([c[0] for c in cues]), torch.cat([c[1] for c in cues]),
+                                          occupancy, goal, [e.alpha for e in self.egos], has_goal)
+
+    # ------------------------------------------------------------------ introspection
+    @property
+    def frame_index(self) -> int:
+        return self._index
