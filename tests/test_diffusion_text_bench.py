@@ -54,6 +54,6 @@ def test_bench_prints_all_rows(capsys):
     from model_runtime import bench
     assert bench.main(["--json", "--configs", "tiny", "--frames", "3", "--slide-frames", "2", "--warmup", "2"]) == 0
     rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
-    assert [r["mode"] for r in rows] == ["segment", "fwsr", "fwsr-nocontrol", "fwsr-raw", "slide"]
+    assert [r["mode"] for r in rows] == ["segment", "fwsr", "fwsr-nocontrol", "fwsr-raw", "slide", "group8", "separate8"]
     for r in rows:
         assert {"config", "mode", "p50_ms", "p99_ms", "frames"} <= set(r) and r["p99_ms"] >= r["p50_ms"] > 0
