@@ -1,9 +1,11 @@
 """Test-time control: steer a segment's latent while it is denoised, with gradients of costs on its motion.
 
 DART steers a latent motion prior by optimisation over many iterations; here the budget is a few
-milliseconds a frame, so the last `steered_steps` denoising steps of a segment each move their predicted
-clean latent x0 one step down the gradient of differentiable costs on the segment it decodes to (one
-decoder forward and backward per steered step), and the diffusion carries on from the steered x0.
+milliseconds a frame, so a segment's denoised latent takes a few (`final_steers`) steps down the gradient of
+differentiable costs on the segment it decodes to (one decoder forward and backward each), and at the segment's
+start a few more (`seam_steers`) with the real history. The last `steered_steps` denoising steps can also move
+their predicted clean latent x0 (off by default: the denoising after them undoes part of it, and on the val
+split they bought nothing for their time).
 
 The costs, on the decoded segment in the job's canonical frame (metres):
 - partner: ego joints closer than `partner_margin` to the partner's joints, the partner moved on at its
@@ -39,8 +41,8 @@ TOES = (JOINT_INDEX["left_foot"], JOINT_INDEX["right_foot"])
 @dataclass(frozen=True)
 class ControlConfig:
     """Cost weights and step sizes of test-time control (chosen on the behaviour suite's val split)."""
-    steered_steps: int = 4          # the last N denoising steps are steered (one gradient step each)
-    final_steers: int = 8           # then this many gradient steps on the denoised latent
+    steered_steps: int = 0          # the last N denoising steps are steered (one gradient step each)
+    final_steers: int = 6           # then this many gradient steps on the denoised latent
     step_size: float = 3.0          # latent units per steered step at full gradient
     max_gradient: float = 1.0       # gradient norms above this are scaled down to it (bounded step length)
     negligible_cost: float = 1e-4   # a segment costing less is left as it is
@@ -64,7 +66,7 @@ class ControlConfig:
     rest_radius: float = 0.6        # m: within this of the goal the segment is asked to stand on it
     rest_weight: float = 20.0
     seam_weight: float = 100.0      # joints accelerate no more across a segment's start than within it ...
-    seam_steers: int = 4            # ... in this many gradient steps with the real history, at the boundary,
+    seam_steers: int = 2            # ... in this many gradient steps with the real history, at the boundary,
     keep_weight: float = 3.0        # the rest of the segment stays as the model made it
     seam_step_size: float = 1.0     # each this long at most (longer ones made a standing body glide away)
     skate_weight: float = 1.0       # light: stronger, it buys less sliding by not walking at all
