@@ -10,7 +10,6 @@ from typing import Any, Sequence
 
 import torch
 
-from .checks import check_control_config
 from .control import ControlConfig
 from .ego import EgoFrame, EgoSettings
 from .group import ReactionGroup
@@ -18,6 +17,24 @@ from .model import ReMoGenModel
 from .schedule import BOUNDARY_COST, STEERED_STEP_COST, steps_per_frame
 
 __all__ = ["ReactionSession", "EgoFrame", "STEERED_STEP_COST", "BOUNDARY_COST", "steps_per_frame"]
+
+
+class _Through:
+    """A property that reads (and writes) the attribute of the same name on an inner object."""
+
+    def __init__(self, inner: str, doc: str = "", read_only: bool = False) -> None:
+        self.inner, self.read_only, self.__doc__ = inner, read_only, doc
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        return self if obj is None else getattr(getattr(obj, self.inner), self.name)
+
+    def __set__(self, obj: Any, value: Any) -> None:
+        if self.read_only:
+            raise AttributeError(f"{self.name} is read-only")
+        setattr(getattr(obj, self.inner), self.name, value)
 
 
 class ReactionSession:
@@ -39,92 +56,21 @@ class ReactionSession:
     def cfg(self):
         return self._group.cfg
 
-    # ------------------------------------------------------------------ live settings of the ego
-    @property
-    def seed(self) -> int:
-        """The noise seed; used from the next reset()."""
-        return self._ego.seed
-
-    @seed.setter
-    def seed(self, value: int) -> None:
-        self._ego.seed = value
-
-    @property
-    def text(self) -> str:
-        return self._ego.text
-
-    @text.setter
-    def text(self, value: str) -> None:
-        self._ego.text = value
-
-    @property
-    def text_warning(self) -> str | None:
-        """One line when the text encoder cannot read the current text (another script, only emoji or symbols),
-        else None."""
-        return self._ego.text_warning
-
-    @property
-    def alpha(self) -> dict[str, float]:
-        return self._ego.alpha
-
-    @alpha.setter
-    def alpha(self, value: dict | None) -> None:
-        self._ego.alpha = value
-
-    @property
-    def guidance(self) -> float:
-        return self._ego.guidance
-
-    @guidance.setter
-    def guidance(self, value: float) -> None:
-        self._ego.guidance = value
-
-    @property
-    def fwsr(self) -> bool:
-        return self._ego.fwsr
-
-    @fwsr.setter
-    def fwsr(self, value: bool) -> None:
-        self._ego.fwsr = value
-
-    @property
-    def cleanup(self) -> bool:
-        """Planted-foot cleanup of the output (leg IK); contacts are reported either way. Next frame on."""
-        return self._ego.cleanup
-
-    @cleanup.setter
-    def cleanup(self, value: bool) -> None:
-        self._ego.cleanup = value
-
-    # ------------------------------------------------------------------ settings of the rollout
-    @property
-    def control(self) -> bool:
-        """Test-time control (control.py): steer each segment with cost gradients. From the next segment on."""
-        return self._group.control
-
-    @control.setter
-    def control(self, value: bool) -> None:
-        self._group.control = value
-
-    @property
-    def control_config(self) -> ControlConfig:
-        return self._group.control_config
-
-    @control_config.setter
-    def control_config(self, value: ControlConfig) -> None:
-        self._group.control_config = check_control_config(value)
-
-    @property
-    def scene(self) -> Any:
-        return self._group.scene
-
-    @scene.setter
-    def scene(self, value: Any) -> None:
-        self._group.scene = value
-
-    @property
-    def slide(self) -> bool:
-        return self._group.slide
+    # Settings of the one ego and of the rollout, read and written straight through (the ego and the group
+    # check the values and keep the state; a session only gives them the single-ego API).
+    seed = _Through("_ego", "The noise seed; used from the next reset().")
+    text = _Through("_ego")
+    text_warning = _Through("_ego", "One line when the text encoder cannot read the prompt, else None.",
+                            read_only=True)
+    alpha = _Through("_ego")
+    guidance = _Through("_ego")
+    fwsr = _Through("_ego")
+    cleanup = _Through("_ego", "Planted-foot cleanup of the output (leg IK); contacts are reported either way.")
+    control = _Through("_group", "Test-time control (control.py): steer each segment with cost gradients. "
+                                 "From the next segment on.")
+    control_config = _Through("_group")
+    scene = _Through("_group")
+    slide = _Through("_group", read_only=True)
 
     # ------------------------------------------------------------------ rollout
     def reset(self, root_position: Sequence[float] = (0.0, 0.0, 0.0), yaw: float = 0.0,

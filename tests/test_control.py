@@ -180,9 +180,9 @@ def test_control_on_changes_the_motion_and_stays_deterministic(tiny_model):
     assert not np.allclose(on, run(False))
 
 
-def test_bad_control_config_is_one_line():
+def test_bad_control_config_is_one_line(tiny_model):
     from model_runtime.errors import InputError
     with pytest.raises(InputError, match="step_size"):
         ControlConfig(step_size=-1.0)
     with pytest.raises(InputError, match="control_config"):
-        ReactionSession.__new__(ReactionSession).control_config = {"step_size": 1}
+        ReactionSession(tiny_model, control=False).control_config = {"step_size": 1}
