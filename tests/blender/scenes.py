@@ -118,6 +118,17 @@ def action_fcurves(action) -> list:
     return list(action.fcurves)
 
 
+def action_curves(action) -> dict:
+    """{(data_path, index): (keys, 2) array of (frame, value)} for every F-curve of an action."""
+    import numpy as np
+    out = {}
+    for fc in action_fcurves(action):
+        co = np.empty(len(fc.keyframe_points) * 2, dtype=np.float32)
+        fc.keyframe_points.foreach_get("co", co)
+        out[(fc.data_path, fc.array_index)] = co.reshape(-1, 2)
+    return out
+
+
 def poison_weights(model) -> None:
     """Fill every weight of a loaded model with NaN in place (a damaged model file, as far as output goes)."""
     import torch

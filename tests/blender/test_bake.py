@@ -13,12 +13,8 @@ def _fcurves(action):
 
 
 def _curves(action) -> dict:
-    out = {}
-    for fc in _fcurves(action):
-        co = np.empty(len(fc.keyframe_points) * 2, dtype=np.float32)
-        fc.keyframe_points.foreach_get("co", co)
-        out[(fc.data_path, fc.array_index)] = co.reshape(-1, 2)
-    return out
+    import scenes
+    return scenes.action_curves(action)
 
 
 def _scene(fps=24, frames=(1, 30)):

@@ -10,12 +10,7 @@ bpy = pytest.importorskip("bpy")
 
 def _curves(action) -> dict:
     import scenes
-    out = {}
-    for fc in scenes.action_fcurves(action):
-        co = np.empty(len(fc.keyframe_points) * 2, dtype=np.float32)
-        fc.keyframe_points.foreach_get("co", co)
-        out[(fc.data_path, fc.array_index)] = co.reshape(-1, 2)
-    return out
+    return scenes.action_curves(action)
 
 
 def _two_egos(frames=(1, 24)) -> dict:
