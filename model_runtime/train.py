@@ -36,6 +36,7 @@ from .errors import RemogenError
 from .training.ema import EMA
 from .training.loop import past_deadline, rank_and_world, train_stage
 from .training.recipe import DEFAULT_STEPS, RECIPE
+from .training.init_from import start_from_vae
 from .training.report import StageRun, say, summary
 from .training.stages import STAGES
 
@@ -53,6 +54,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cmu-only", action="store_true", help="train on CMU clips only (commercial-use weights)")
     ap.add_argument("--out", default="runs/train", help="folder for model.pt, STAGE.state.pt and STAGE.log.jsonl")
     ap.add_argument("--config", default="default", help="model size preset: tiny, default or paper")
+    ap.add_argument("--init-vae", default=None, metavar="FILE",
+                    help="copy FILE's VAE and feature statistics and train the stages after it (for a new text "
+                         "encoder or new captions: the VAE does not depend on text)")
     ap.add_argument("--steps", type=int, default=None, help="steps per stage (default: the stage's RECIPE entry)")
     ap.add_argument("--batch", type=int, default=None, help="batch per rank (default: the stage's RECIPE entry)")
     ap.add_argument("--lr", type=float, default=None, help="learning rate (default: the stage's RECIPE entry)")
@@ -72,6 +76,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         lib = _load_library(args, progress)
         out = Path(args.out)
+        if args.init_vae:
+            if args.stage == "vae":
+                raise RemogenError("--init-vae copies a trained VAE, so there is no vae stage to train; name a later "
+                                   "stage or all")
+            if start_from_vae(Path(args.init_vae), out, args.config) and progress:
+                say(f"vae: copied from {args.init_vae} into {out / 'model.pt'}")
         deadline = time.time() + args.minutes * 60 if args.minutes else None
         for st in STAGES if args.stage == "all" else (args.stage,):
             if _stage_done(out, st, args.steps):

@@ -155,8 +155,10 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                          "val_loss": ([None] + [v for _, v in validation_history(log_path)])[-1]}
         if stage in TEXT_STAGES:
             stages[stage]["text_drop"] = TEXT_DROP
-        meta.update({"trained": True, "stages": stages, "sources": sorted(set(lib.sources)),
-                     "non_commercial": "bandai" in set(lib.sources)})
+        # a VAE copied from another file (--init-vae) brings its own data: its licence carries over
+        sources = set(lib.sources) | set(meta.get("sources", []))
+        meta.update({"trained": True, "stages": stages, "sources": sorted(sources),
+                     "non_commercial": "bandai" in sources or bool(meta.get("non_commercial", False))})
         model.meta = meta
         save_model(model, model_path)
         ema.swap()

@@ -27,3 +27,7 @@ TEXT_DROP = 0.1
 # toward a person ahead" and walked the ego into a partner standing 3 m ahead (clearance 0.01-0.07 m at alpha 1
 # against 0.04-0.41 m prior-only); without it the side-on approach scenario's facing error at 90 degrees fell from
 # 87 to 42 degrees (prior 60).
+# The stages that also train on a left-right mirrored copy of every real clip (data/mirror.py): the prior trained
+# without them turned clockwise in every "walks forward" rollout (58 deg per 20 s on the test split) although the
+# clips turn both ways about equally. The VAE only reconstructs, so it needs none.
+MIRROR_STAGES = ("prior", "hhi", "hsi", "fwsr")

@@ -10,6 +10,7 @@ from ..config import ModelConfig
 from ..data.library import ClipLibrary
 from ..errors import RemogenError
 from ..model import ReMoGenModel
+from .recipe import MIRROR_STAGES
 from .samples import SegmentSampler
 
 
@@ -59,6 +60,13 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
     """Training and validation samplers for a stage (interaction stages get generated pairs/scenes); no
     validation sampler (None) when no held-out clip fits the stage's pair rules."""
     train_ids, val_ids = lib.split("train"), lib.split("val")
+    if stage in MIRROR_STAGES:
+        # mirrored copies first: the derivations below then see real clips only, as before (data/mirror.py)
+        from ..data.mirror import add_mirrors
+        lib, mirrored = add_mirrors(lib, train_ids + val_ids, seed=seed)
+        train_ids = train_ids + [i for i in mirrored if not lib.is_held_out(i)]
+        val_ids = val_ids + [i for i in mirrored if lib.is_held_out(i)]
+        note(f"{len(mirrored)} mirrored copies of real clips")
     pairs_tr = pairs_va = scenes_tr = scenes_va = None
     if stage in ("hhi", "fwsr"):
         from ..data.pairs import build_hhi_pairs
