@@ -31,6 +31,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--episodes", type=int, default=EPISODES_PER_FAMILY, help="episodes per family")
     ap.add_argument("--guidance", type=float, default=5.0)
     ap.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    ap.add_argument("--no-control", action="store_true",
+                    help="roll out without test-time control: what the model has learned by itself")
     ap.add_argument("--json", action="store_true", help="print the report as one JSON object")
     ap.add_argument("--plots", default=None, help="folder for top-view paths and stick-figure strips")
     args = ap.parse_args(argv)
@@ -48,7 +50,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     report = run_suite(model, args.split, families=args.families, episodes=args.episodes,
-                       guidance=args.guidance, progress=lambda m: print(m, file=sys.stderr, flush=True))
+                       guidance=args.guidance, progress=lambda m: print(m, file=sys.stderr, flush=True),
+                       control=not args.no_control)
+    report["control"] = not args.no_control
     if args.plots:
         from .plots import plot_report
         for p in plot_report(report, args.plots):
