@@ -188,3 +188,32 @@ def test_hsi_windows_favour_the_frames_that_reach_the_goal(lib):
     close = s._close_starts[0].tolist()
     assert close == expect and 0 < len(close) < n - span    # some windows reach the goal, not all
     _assert_drawn_share(s, lib.features(clip).shape[0], close, samples.GOAL_SHARE)
+
+
+def test_init_vae_copies_the_vae_and_trains_the_stages_after_it(tmp_path, lib):
+    from model_runtime.train import main
+    path = lib.save(tmp_path / "clips.npz")
+    train_stage("vae", tmp_path / "a", lib, config="tiny", steps=2, batch=8, val_every=2, val_batches=1,
+                progress=False)
+    source = load_model(tmp_path / "a" / "model.pt")
+    common = ["--library", str(path), "--config", "tiny", "--steps", "2", "--batch", "8", "--no-progress"]
+    assert main(["vae", "--out", str(tmp_path / "b"), "--init-vae", str(tmp_path / "a" / "model.pt"), *common]) == 2
+    assert not (tmp_path / "b").exists()                 # refused before anything was written
+    assert main(["prior", "--out", str(tmp_path / "b"), "--init-vae", str(tmp_path / "a" / "model.pt"), *common]) == 0
+    model = load_model(tmp_path / "b" / "model.pt")
+    for part in ("stats", "vae"):
+        mine, theirs = getattr(model, part).state_dict(), getattr(source, part).state_dict()
+        assert all(torch.equal(mine[k], theirs[k]) for k in theirs)
+    assert set(model.meta["stages"]) == {"vae", "prior"}
+    assert model.meta["stages"]["vae"]["copied_from"] == str(tmp_path / "a" / "model.pt")
+    assert model.meta["non_commercial"] is True
+
+
+def test_init_vae_from_another_preset_is_refused(tmp_path, lib):
+    from model_runtime.train import main
+    from model_runtime.checkpoint import save_model
+    path = lib.save(tmp_path / "clips.npz")
+    save_model(load_model(config="default"), tmp_path / "big.pt")
+    code = main(["prior", "--library", str(path), "--out", str(tmp_path / "b"), "--config", "tiny",
+                 "--init-vae", str(tmp_path / "big.pt"), "--steps", "1", "--no-progress"])
+    assert code == 2 and not (tmp_path / "b" / "model.pt").exists()
