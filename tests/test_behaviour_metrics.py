@@ -106,3 +106,93 @@ def test_retimed_walk_keeps_feet_planted():
     assert 0.7 < speed < 1.5
     s = cruise_then_stop(3.0, 1.5, 40)
     assert s[-1] == pytest.approx(3.0) and np.all(np.diff(s) >= -1e-12)
+
+
+# ----------------------------------------------------------------------------- text statistics
+def moving_body(frames: int, velocity_xy, yaw: float = 0.0) -> np.ndarray:
+    """(frames, 22, 3) the standing rest body gliding at velocity_xy (m/s), turned by yaw, 10 fps."""
+    return np.stack([standing_body(yaw, (velocity_xy[0] * k / 10.0, velocity_xy[1] * k / 10.0))
+                     for k in range(frames)])
+
+
+def test_travel_against_facing_reads_backwards_forwards_and_sideways():
+    # yaw 0 faces -Y; the rest hips are 2.2 deg off square, hence 3 deg of slack
+    assert M.travel_vs_facing_deg(moving_body(31, (0.0, 1.0))) == pytest.approx(180.0, abs=3.0)   # backs away
+    assert M.travel_vs_facing_deg(moving_body(31, (0.0, -1.0))) == pytest.approx(0.0, abs=3.0)
+    assert M.travel_vs_facing_deg(moving_body(31, (1.0, 0.0))) == pytest.approx(90.0, abs=3.0)
+    turned = moving_body(31, (-1.0, 0.0), yaw=math.pi / 2)                 # faces +X, moves -X
+    assert M.travel_vs_facing_deg(turned) == pytest.approx(180.0, abs=3.0)
+    assert M.travel_vs_facing_deg(moving_body(31, (0.0, 0.005))) == 0.0    # 15 mm: no direction to judge
+    m = M.text_measures(moving_body(31, (0.0, 1.0)))
+    assert m["speed_mps"] == pytest.approx(1.0) and m["forward_m"] == pytest.approx(-3.0, abs=0.01)
+
+
+def test_a_standing_body_stands_on_both_its_toes_and_heels():
+    sole = M.lowest_sole(standing_body()[None])
+    assert sole[0] == pytest.approx(0.0, abs=0.005)
+
+
+def test_airborne_share_of_a_body_off_the_floor_half_the_time():
+    j = moving_body(20, (0.0, 0.0))
+    j[1::2, :, 2] += 0.10                               # both soles 10 cm up on every other frame
+    assert M.airborne_percent(j) == pytest.approx(50.0)
+    assert M.text_measures(j)["airborne_percent"] == pytest.approx(50.0)
+    heel_strike = moving_body(20, (0.0, 0.0))
+    heel_strike[:, list(M.TOES), 2] += 0.10             # toes up, heels down: still on the ground
+    assert M.airborne_percent(heel_strike) == 0.0
+
+
+def test_a_real_clips_floor_follows_a_sloped_capture_but_not_a_jump():
+    j = moving_body(60, (0.0, 0.0))
+    j[..., 2] += np.linspace(0.0, 0.12, 60)[:, None]    # the capture's floor rises 12 cm over 6 s
+    assert M.airborne_percent(j) > 40.0                 # against z = 0 it reads as lifting off
+    assert M.airborne_percent(j, M.rolling_floor(j)) == 0.0
+    j[28:32, :, 2] += 0.3                               # a 0.4 s jump
+    assert M.airborne_percent(j, M.rolling_floor(j)) == pytest.approx(100.0 * 4 / 60)
+
+
+def test_kick_height_is_the_highest_ankle_above_the_floor():
+    j = moving_body(10, (0.0, 0.0))
+    ankle = M.ANKLES[1]
+    j[5, ankle, 2] = 0.55
+    assert M.text_measures(j)["max_ankle_height_m"] == pytest.approx(0.55)
+    assert M.text_measures(j, floor=np.full(10, 0.05))["max_ankle_height_m"] == pytest.approx(0.50)
+
+
+def waving_body(frames: int, amplitude: float, above: float, yaw: float = 0.0) -> np.ndarray:
+    """A standing body whose right wrist sits `above` m over its shoulder and swings side to side by
+    amplitude * sin (one cycle a second), the whole body turned by yaw."""
+    j = moving_body(frames, (0.0, 0.0))                 # yaw 0: the body's side-to-side axis is X
+    wrist, shoulder = M.WRISTS[1], M.SHOULDERS[1]
+    swing = amplitude * np.sin(2.0 * math.pi * np.arange(frames) / 10.0)
+    j[:, wrist] = j[:, shoulder] + np.stack((swing, np.zeros(frames), np.full(frames, above)), -1)
+    c, s = math.cos(yaw), math.sin(yaw)
+    x, y = j[..., 0].copy(), j[..., 1].copy()
+    j[..., 0], j[..., 1] = c * x - s * y, s * x + c * y
+    return j
+
+
+def test_a_waving_wrist_gives_the_sd_of_its_swing():
+    sd, raised = M.wave_measures(waving_body(40, 0.10, 0.2))
+    # the rest hips are 2.2 deg off square: the body's side-to-side axis is cos(2.2 deg) = 0.9993 along X
+    assert sd == pytest.approx(0.10 / math.sqrt(2.0), rel=1e-3) and raised == pytest.approx(100.0)
+    turned = M.wave_measures(waving_body(40, 0.10, 0.2, yaw=1.0))
+    assert turned[0] == pytest.approx(sd, abs=1e-6)     # measured on the body's own side-to-side axis
+    assert M.wave_measures(waving_body(40, 0.10, -0.3)) == (0.0, 0.0)        # swinging below the shoulder
+    short = waving_body(40, 0.10, -0.3)
+    short[:5, M.WRISTS[1], 2] += 0.6                    # raised for only 0.5 s
+    assert M.wave_measures(short) == (0.0, 0.0)
+    assert M.text_measures(waving_body(40, 0.10, 0.2))["wave_sd_m"] == pytest.approx(sd)
+
+
+# ----------------------------------------------------------------------------- takes that differ
+def test_pose_distance_ignores_where_and_which_way_a_take_starts():
+    a = waving_body(30, 0.1, 0.2)
+    moved = waving_body(30, 0.1, 0.2, yaw=2.0) + np.array([3.0, -1.0, 0.0])
+    assert M.pose_distance_m(a, a) == 0.0
+    assert M.pose_distance_m(a, moved) == pytest.approx(0.0, abs=1e-9)
+    assert M.mean_pairwise_distance([a, a.copy(), moved]) == (pytest.approx(0.0, abs=1e-9), 3)
+    other = a.copy()
+    other[:, M.WRISTS[1], 2] += 0.22                    # one of 22 joints 22 cm off in every frame
+    assert M.pose_distance_m(a, other[:20]) == pytest.approx(0.01)
+    assert math.isnan(M.mean_pairwise_distance([a])[0])

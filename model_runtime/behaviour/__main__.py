@@ -17,13 +17,40 @@ def _jsonable(x):
         return None if not np.isfinite(x) else round(float(x), 4)
     if isinstance(x, np.integer):
         return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
     return x
 
 
+def _print_tables(path: str) -> int:
+    """Markdown tables of a saved --json report."""
+    from pathlib import Path
+
+    from .tables import report_tables
+    try:
+        report = json.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as exc:
+        print(f"error: cannot read {path} ({exc.strerror or exc}); give a report saved with --json", file=sys.stderr)
+        return 2
+    except ValueError:
+        print(f"error: {path} is not JSON; give a report saved with --json", file=sys.stderr)
+        return 2
+    try:
+        text = report_tables(report)
+    except (KeyError, TypeError, AttributeError) as exc:
+        print(f"error: {path} is not a behaviour report ({type(exc).__name__}: {exc}); give one saved with --json",
+              file=sys.stderr)
+        return 2
+    print(text or f"{path} has neither the text family nor diversity; run with --families text or --diversity")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
+    from ..cli_help import HelpFormatter
+    from .diversity import DIVERSITY_PROMPTS, DIVERSITY_SEEDS
     from .scenarios import EPISODES_PER_FAMILY, FAMILIES
     ap = argparse.ArgumentParser(prog="python -m model_runtime.evaluate --behaviour", description=__doc__,
-                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                                 formatter_class=HelpFormatter)
     ap.add_argument("--split", choices=("val", "test"), default="val",
                     help="val for every choice (checkpoint, weights, thresholds); test only to report")
     ap.add_argument("--model", default=None, help="model file (default: the shipped weights)")
@@ -35,9 +62,23 @@ def main(argv: list[str] | None = None) -> int:
                     help="roll out without test-time control: what the model has learned by itself")
     ap.add_argument("--json", action="store_true", help="print the report as one JSON object")
     ap.add_argument("--plots", default=None, help="folder for top-view paths and stick-figure strips")
+    ap.add_argument("--library", default=None,
+                    help="clip library .npz (e.g. runs/clips_full.npz): real-clip references for the text "
+                         "family's kinds and the diversity measure; without it they are reported as absent")
+    ap.add_argument("--diversity", action="store_true",
+                    help=f"also measure takes that differ: the {len(DIVERSITY_PROMPTS)} diversity prompts "
+                         "rolled out with --diversity-seeds seeds each (100 frames a take), pose distance "
+                         "between seeds against real takes of the same caption")
+    ap.add_argument("--diversity-seeds", type=int, default=DIVERSITY_SEEDS, help="seeds per diversity prompt")
+    ap.add_argument("--table", default=None, metavar="REPORT_JSON",
+                    help="print the markdown tables (text family, diversity) of a saved --json report and exit")
     args = ap.parse_args(argv)
+    if args.table:
+        return _print_tables(args.table)
     if args.episodes < 1:
         ap.error("--episodes must be at least 1")
+    if args.diversity and args.diversity_seeds < 2:
+        ap.error("--diversity-seeds must be at least 2")
     import torch
 
     from ..checkpoint import load_model
@@ -46,13 +87,20 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(args.threads)
     try:
         model = load_model(args.model)
+        library = None
+        if args.library:
+            from ..data.library import ClipLibrary
+            library = ClipLibrary.load(args.library)
     except RemogenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     report = run_suite(model, args.split, families=args.families, episodes=args.episodes,
                        guidance=args.guidance, progress=lambda m: print(m, file=sys.stderr, flush=True),
+                       library=library, diversity_seeds=args.diversity_seeds if args.diversity else 0,
                        control=not args.no_control)
     report["control"] = not args.no_control
+    if args.library:
+        report["reference"]["library"] = args.library
     if args.plots:
         from .plots import plot_report
         for p in plot_report(report, args.plots):
@@ -61,10 +109,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json.dumps(_jsonable(out)))
     else:
+        from .tables import report_tables
         for family, by_alpha in out["families"].items():
             for alpha, s in by_alpha.items():
-                flat = {k: v for k, v in s.items() if k != "prompts"}
+                flat = {k: v for k, v in s.items() if k not in ("prompts", "kinds")}
                 print(family, alpha, json.dumps(_jsonable(flat)))
+        tables = report_tables(_jsonable(out))
+        if tables:
+            print("\n" + tables)
     return 0
 
 

@@ -23,15 +23,9 @@ GOAL_EPISODE_FRAMES = 140                # plus 2 s to see whether it stops
 STAND_TEXT = "a person stands"
 WALK_TEXT = "a person walks forward"
 GOAL_TEXT = "a person walks"
-TEXT_PROMPTS = (
-    "a person walks", "a person walks slowly", "a person walks quickly", "a person runs", "a person sprints",
-    "a person jogs in place", "a person jumps", "a person hops on one leg", "a person kicks",
-    "a person waves", "a person waves with the left hand", "a person dances", "a person moves backwards",
-    "a person walks backwards", "a person turns left", "a person turns right", "a person sits down",
-    "a person crouches", "a person stretches", "a person claps", "a person looks around",
-    "a person walks in a circle", "a person steps to the side", "a person bows",
-)
+TEXT_EPISODE_FRAMES = 100              # 10 s per text prompt
 from .. import WALK_CLIP
+from .text_targets import TEXT_PROMPTS  # prompt -> kind -> statistic and target
 
 
 @dataclass(frozen=True)
@@ -232,7 +226,7 @@ def _obstacles(rng: np.random.Generator, i: int) -> Episode:
 
 def _text(rng: np.random.Generator, i: int) -> Episode:
     prompt = TEXT_PROMPTS[i % len(TEXT_PROMPTS)]
-    return Episode("text", i, int(rng.integers(2 ** 31)), prompt, 100, params={"prompt": prompt})
+    return Episode("text", i, int(rng.integers(2 ** 31)), prompt, TEXT_EPISODE_FRAMES, params={"prompt": prompt})
 
 
 def _walk_forward(rng: np.random.Generator, i: int) -> Episode:

@@ -1,20 +1,21 @@
 """Run the behaviour suite: roll out every episode through a ReactionSession and aggregate the metrics."""
 from __future__ import annotations
 
-import math
 import time
-from typing import Callable, Iterable
+from typing import TYPE_CHECKING, Callable, Iterable
 
 import numpy as np
 
-from ..joints import JOINT_INDEX, SOLE_BELOW_FOOT_JOINT
 from . import metrics as M
+from .metrics import finite_mean as _mean
+from .metrics import text_measures
 from .scenarios import FAMILIES, GOAL_LIMIT_FRAMES, Episode, box_triangles, draw_episodes, walk_clip
+from .text_targets import judge_text
+
+if TYPE_CHECKING:
+    from ..data.library import ClipLibrary
 
 ALPHAS = (0.0, 1.0)
-AIRBORNE_HEIGHT = 0.05     # m: both soles above this counts as airborne
-WRISTS = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
-ANKLES = (JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"])
 
 
 def scene_grid(ep: Episode):
@@ -36,24 +37,6 @@ def roll_out(model, ep: Episode, alpha: float, *, guidance: float = 5.0, **sessi
     for i in range(ep.frames):
         out[i] = s.step(partner=None if ep.partner is None else ep.partner[i], goal=ep.goal).joints
     return out
-
-
-def text_measures(ego: np.ndarray) -> dict:
-    """What a prompt should change: height range, airborne share, kick height, speed, direction, arm motion."""
-    j = np.asarray(ego, np.float64)
-    soles = j[:, list(M.TOES), 2] - SOLE_BELOW_FOOT_JOINT
-    pelvis = j[:, 0]
-    facing0 = M.hip_facing(j[0])
-    disp = pelvis[-1, :2] - pelvis[0, :2]
-    wrist_v = np.linalg.norm(np.diff(j[:, list(WRISTS)], axis=0), axis=-1) * M.FPS
-    lateral = j[:, list(WRISTS), :2] - pelvis[:, None, :2]
-    return {"pelvis_range_m": float(np.ptp(pelvis[:, 2])),
-            "airborne_percent": float(100.0 * (soles.min(-1) > AIRBORNE_HEIGHT).mean()),
-            "max_ankle_height_m": float(j[:, list(ANKLES), 2].max()),
-            "speed_mps": float(np.linalg.norm(np.diff(pelvis[:, :2], axis=0), axis=-1).mean() * M.FPS),
-            "forward_m": float(disp @ facing0),
-            "wrist_sd_m": float(lateral.std(0).mean()),
-            "wrist_speed_mps": float(wrist_v.mean())}
 
 
 def episode_metrics(ep: Episode, ego: np.ndarray) -> dict:
@@ -86,11 +69,6 @@ def _seam_split(ego: np.ndarray) -> tuple[float, int, float, int]:
     return float(steps[seam].sum()), int(seam.sum()), float(steps[~seam].sum()), int((~seam).sum())
 
 
-def _mean(xs: Iterable[float]) -> float:
-    a = np.asarray([x for x in xs if x is not None and math.isfinite(x)], np.float64)
-    return float(a.mean()) if a.size else float("nan")
-
-
 def summarise(family: str, results: list[dict]) -> dict:
     """Family-level numbers (the ones README and the model card report) from per-episode metrics."""
     s = {"episodes": len(results)}
@@ -118,11 +96,7 @@ def summarise(family: str, results: list[dict]) -> dict:
     if family == "stand":
         s["drift_mean_m_per_min"] = _mean(r["drift_m_per_min"] for r in results)
     if family == "text":
-        keys = [k for k in results[0] if k.endswith(("_m", "_percent", "_mps")) and k not in ("closest_m",)]
-        prompts: dict[str, list[dict]] = {}
-        for r in results:
-            prompts.setdefault(r["prompt"], []).append(r)
-        s["prompts"] = {p: {k: _mean(r[k] for r in rs) for k in keys} for p, rs in prompts.items()}
+        s.update(judge_text(results))      # per prompt and per kind: statistic, mean, target, pass
     return s
 
 
@@ -136,9 +110,21 @@ def real_reference() -> dict:
 
 def run_suite(model, split: str, *, families: Iterable[str] = FAMILIES, episodes: int | None = None,
               alphas: Iterable[float] = ALPHAS, guidance: float = 5.0,
-              progress: Callable[[str], None] | None = None, keep_tracks: int = 12, **session_options) -> dict:
-    """Every family at every alpha: {"families": {family: {"alpha=A": summary}}, "tracks": ..., "reference"}."""
+              progress: Callable[[str], None] | None = None, keep_tracks: int = 12,
+              library: ClipLibrary | None = None,
+              diversity_seeds: int = 0, **session_options) -> dict:
+    """Every family at every alpha: {"families": {family: {"alpha=A": summary}}, "tracks": ..., "reference"}.
+
+    library: a ClipLibrary for the text family's real-clip references (report["reference"]["text"]) and
+    the diversity reference. diversity_seeds > 0 adds report["diversity"] (diversity.py): every diversity
+    prompt rolled out with that many seeds.
+    """
+    families = list(families)
     report: dict = {"split": split, "families": {}, "reference": real_reference()}
+    if "text" in families:
+        from .real_clips import text_reference
+        report["reference"]["text"] = text_reference(library) if library is not None else \
+            {"absent": "no clip library given (--library PATH)"}
     tracks: dict = {}
     for family in families:
         eps = draw_episodes(family, split) if episodes is None else draw_episodes(family, split, episodes)
@@ -156,5 +142,9 @@ def run_suite(model, split: str, *, families: Iterable[str] = FAMILIES, episodes
             report["families"].setdefault(family, {})[f"alpha={alpha:g}"] = summary
             if progress is not None:
                 progress(f"{family} alpha={alpha:g}: {len(eps)} episodes in {summary['seconds']} s")
+    if diversity_seeds > 0:
+        from .diversity import diversity_report
+        report["diversity"] = diversity_report(model, split, seeds=diversity_seeds, library=library,
+                                               guidance=guidance, progress=progress, **session_options)
     report["tracks"] = tracks
     return report
