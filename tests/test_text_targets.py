@@ -149,3 +149,19 @@ def test_the_table_option_refuses_a_file_that_is_no_report(tmp_path, capsys):
     assert err.startswith("error:") and "not a behaviour report" in err and "\n" not in err
     assert behaviour_main(["--table", str(tmp_path / "missing.json")]) == 2
     assert "cannot read" in capsys.readouterr().err
+
+
+def test_targets_table_from_a_hand_made_report():
+    from model_runtime.behaviour.tables import report_tables
+    fam = {"crossing": {"alpha=1": {"episodes": 48, "percent_under_10cm": 12.5, "seam_ratio": 1.4},
+                        "alpha=0": {"episodes": 48, "percent_under_10cm": 80.0, "seam_ratio": 1.1}},
+           "stand": {"alpha=1": {"episodes": 48, "drift_mean_m_per_min": 0.25, "seam_ratio": 1.2,
+                                 "planted_toe_cm_s": 0.5},
+                     "alpha=0": {"episodes": 48, "drift_mean_m_per_min": 0.25, "seam_ratio": 1.2,
+                                 "planted_toe_cm_s": 0.5}}}
+    table = report_tables({"split": "val", "control": False, "families": fam})
+    assert "val split, control off" in table
+    assert "| >= 90 % at alpha 1 | 87.5 % | 20.0 % |" in table          # clear = 100 - under
+    assert "worst family (crossing at alpha 1; stand at alpha 0) | <= 1.3 | 1.40 | 1.20 |" in table
+    assert "| standing drift per minute | <= 0.3 m | 0.25 m | 0.25 m |" in table
+    assert "goal" not in table                                          # families not run are left out

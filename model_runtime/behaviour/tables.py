@@ -64,9 +64,69 @@ def diversity_table(report: dict) -> str:
     return "\n".join(head + rows) + "\n" + foot
 
 
+# (row name, target, family, summary key, unit, decimals); the seam row is added from the worst family
+_TARGET_ROWS = (
+    ("partner crossing: episodes with min joint clearance >= 0.10 m", ">= 90 % at alpha 1", "crossing",
+     "percent_clear_10cm", " %", 1),
+    ("approach: mean final facing error", "<= 30 deg", "approach", "facing_error_mean_deg", " deg", 1),
+    ("approach: episodes within 45 deg", ">= 85 %", "approach", "percent_within_45deg", " %", 1),
+    ("approach: smallest clearance over episodes", ">= 0.2 m", "approach", "min_clearance_min_m", " m", 2),
+    ("goal in any direction: reached within 0.5 m in 12 s", ">= 90 %", "goal", "reach_percent", " %", 1),
+    ("goal in any direction: distance 2 s after arrival", "<= 0.3 m", "goal", "settle_mean_m", " m", 2),
+    ("goal past obstacles: reached within 0.5 m in 12 s", ">= 90 %", "obstacles", "reach_percent", " %", 1),
+    ("goal past obstacles: distance 2 s after arrival", "<= 0.3 m", "obstacles", "settle_mean_m", " m", 2),
+    ("goal past obstacles: frames with a joint inside", "<= 1 %", "obstacles", "inside_obstacle_percent", " %", 2),
+    ("planted-toe speed, walk forward", "<= 5 cm/s", "walk_forward", "planted_toe_cm_s", " cm/s", 2),
+    ("planted-toe speed, stand", "<= 1 cm/s", "stand", "planted_toe_cm_s", " cm/s", 2),
+    ("mean abs net yaw per 20 s, walk forward", "<= 20 deg", "walk_forward", "abs_net_yaw_mean_deg", " deg", 1),
+    ("standing drift per minute", "<= 0.3 m", "stand", "drift_mean_m_per_min", " m", 2),
+)
+
+
+def _value(families: dict, family: str, alpha: int, key: str) -> float | None:
+    s = families.get(family, {}).get(f"alpha={alpha}")
+    if s is None:
+        return None
+    if key == "percent_clear_10cm":
+        under = s.get("percent_under_10cm")
+        return None if under is None else 100.0 - under
+    return s.get(key)
+
+
+def _fmt(v, unit: str, decimals: int) -> str:
+    return "n/a" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{decimals}f}{unit}"
+
+
+def targets_table(report: dict) -> str:
+    """The behaviour targets at alpha 1 and 0, with the worst seam ratio over the families run, and every
+    family's seam ratio below it."""
+    fam = report.get("families", {})
+    seams = {(f, a): _value(fam, f, a, "seam_ratio") for f in fam if f != "text" for a in (1, 0)}
+    seams = {k: v for k, v in seams.items() if v is not None}
+    n = max((s.get("episodes", 0) for by in fam.values() for s in by.values()), default=0)
+    control = {True: "control on", False: "control off"}.get(report.get("control"), "")
+    head = [f"| metric ({n} episodes a family, {report.get('split', '?')} split{', ' + control if control else ''}) "
+            "| target | alpha 1 | alpha 0 |", "|---|---|---|---|"]
+    rows = []
+    for name, target, family, key, unit, nd in _TARGET_ROWS:
+        if family in fam:
+            rows.append(f"| {name} | {target} | {_fmt(_value(fam, family, 1, key), unit, nd)} | "
+                        f"{_fmt(_value(fam, family, 0, key), unit, nd)} |")
+    if seams:
+        worst = {a: max(((v, f) for (f, b), v in seams.items() if b == a), default=(None, "-")) for a in (1, 0)}
+        rows.insert(9, f"| seam ratio, worst family ({worst[1][1]} at alpha 1; {worst[0][1]} at alpha 0) | <= 1.3 | "
+                       f"{_fmt(worst[1][0], '', 2)} | {_fmt(worst[0][0], '', 2)} |")
+    per_family = ", ".join(f"{f} {_fmt(seams.get((f, 1)), '', 2)} / {_fmt(seams.get((f, 0)), '', 2)}"
+                           for f in dict.fromkeys(f for f, _ in seams))
+    foot = f"\nSeam ratio per family (alpha 1 / 0): {per_family}." if seams else ""
+    return "\n".join(head + rows) + "\n" + foot
+
+
 def report_tables(report: dict) -> str:
-    """Every table the report has data for ('' when it has neither the text family nor diversity)."""
+    """Every table the report has data for ('' when it has no family at all)."""
     parts = []
+    if any(f != "text" for f in report.get("families", {})):
+        parts.append("Behaviour targets\n\n" + targets_table(report))
     text = report.get("families", {}).get("text", {})
     for alpha in ["alpha=1"] if "alpha=1" in text else text:      # the model as shipped; else what was run
         parts.append(f"Text family, {alpha}\n\n" + text_table(report, alpha))
