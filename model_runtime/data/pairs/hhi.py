@@ -105,7 +105,7 @@ def build_hhi_pairs(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_cl
     MIN_CLEARANCE from the ego at every frame (placements that do not are resampled, then skipped).
     """
     clips = ClipCache(lib)
-    standing = standing_partners(clips)
+    standing = standing_partners(lib)
     out: list[HHIPair] = []
     for ego in clip_ids:
         rng = np.random.default_rng([seed, int(ego)])
