@@ -10,7 +10,7 @@ from model_runtime.data.detours import bend_pelvis
 from model_runtime.data.hhi_copies import add_hhi_copies
 from model_runtime.data.library import derived_kind, held_out, is_derived, source_name
 from model_runtime.data.new_clips import partner_clip_name
-from model_runtime.data.stretches import clearance
+from model_runtime.data.stretches import clearance, straight_caption
 from model_runtime.data.pairs import MIN_CLEARANCE, build_hhi_pairs, clip_joints, facing_xy, min_clearance
 from model_runtime.data.pairs.hhi import AVOID_CLEARANCE, FOLLOW_MIN_GAP
 from model_runtime.skeleton import (JOINT_INDEX, axis_angle_to_matrix, matrix_to_quat, quat_to_matrix,
@@ -211,3 +211,9 @@ def test_clearance_is_the_smallest_joint_distance():
         a = rng.normal(0, 0.4, (30, 22, 3)) + [0.0, 0.0, 1.0]
         b = a[::-1] + np.r_[rng.normal(0, 1.0, 2), 0.0]
         assert clearance(a, b) == pytest.approx(min_clearance(a, b))
+
+
+def test_a_straight_stretch_of_a_walk_and_turn_clip_is_captioned_as_a_walk():
+    assert straight_caption("a person walks and turns left, sadly") == "a person walks forward, sadly"
+    assert straight_caption("a person walks and turns right") == "a person walks forward"
+    assert straight_caption("a person runs forward, happily") == "a person runs forward, happily"

@@ -23,9 +23,10 @@ stepaside (`<source>#stepaside<k>`)
     The step is a synthetic shift of a real clip: the feet slide instead of stepping; the copies teach that
     and where to make room, not the footwork.
 
-Both keep the source's caption (a step-aside copy's is prefixed "a person steps aside and"), licence and
-held-out split, and store their partner as a clip (new_clips.partner_clip_name) that the pair builder
-(pairs.hhi, kinds avoid_walker and step_aside) checks again on its FK joints.
+Both keep the source's licence and held-out split and its caption: a step-aside copy's is prefixed "a person
+steps aside and"; an avoid copy of a walk-and-turn clip, a straight stretch of it, says "a person walks
+forward" in the clip's style. Both store their partner as a clip (new_clips.partner_clip_name) that the pair
+builder (pairs.hhi, kinds avoid_walker and step_aside) checks again on its FK joints.
 """
 from __future__ import annotations
 
@@ -36,8 +37,8 @@ from .geometry import normalized
 from .library import ClipLibrary
 from .new_clips import NewClip, copy_name, new_clip, partner_clip_name
 from .pairs import FPS, ClipCache, facing_xy
-from .stretches import (Stretch, WalkPool, clearance, clip_stretch, moved, partner_walk, rotate_xy, walk_stretch,
-                        yaw_of)
+from .stretches import (Stretch, WalkPool, clearance, clip_stretch, moved, partner_walk, rotate_xy,
+                        straight_caption, walk_stretch, yaw_of)
 from .turns import smoothstep
 
 AVOID_FRAMES = (28, 50)              # frames of an avoidance copy (inclusive; at most the walk's straight stretch)
@@ -213,7 +214,7 @@ def avoid_copies(lib: ClipLibrary, clips: ClipCache, egos: WalkPool, partners: d
                     ego, yaw, partner = got
                     rot, pel = bend_path(ego.rotations, ego.pelvis, yaw)
                     name = copy_name(lib, i, "avoid", k)
-                    out += [new_clip(lib, i, name, lib.captions[i], rot, pel),
+                    out += [new_clip(lib, i, name, straight_caption(lib.captions[i]), rot, pel),
                             new_clip(lib, partner.source, partner_clip_name(name), lib.captions[partner.source],
                                      partner.rotations, partner.pelvis, ego=False)]
                     break

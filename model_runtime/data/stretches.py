@@ -60,6 +60,15 @@ def split_style(caption: str) -> tuple[str, str]:
     return (head, tail) if sep and tail in STYLE_SYNONYMS else (caption, "")
 
 
+def straight_caption(caption: str) -> str:
+    """The caption of a straight stretch of a clip: a stretch of a walk-and-turn clip does not turn, it walks
+    forward (in the clip's style)."""
+    head, style = split_style(caption)
+    if "turn" not in head:
+        return caption
+    return "a person walks forward" + (f", {style}" if style else "")
+
+
 def clip_stretch(lib: ClipLibrary, clips: ClipCache, i: int, times: np.ndarray) -> Stretch:
     """Clip i at (fractional, increasing) frame times: poses slerped, joints interpolated."""
     a, b = int(lib.offsets[i]), int(lib.offsets[i + 1])
