@@ -6,8 +6,9 @@ import pytest
 import torch
 
 from model_runtime.data.library import ClipLibrary
-from model_runtime.data.pairs import (GOAL_LEAD, GOAL_LEAD_MAX, HHI_KINDS, HSI_KINDS, STOPPED_SPEED, analyse_path,
-                                      build_hhi_pairs, build_hsi_scenes, clip_joints, facing_xy)
+from model_runtime.data.mirror import add_mirrors
+from model_runtime.data.pairs import (GOAL_LEAD, GOAL_LEAD_MAX, HHI_KINDS, HSI_KINDS, STOPPED_SPEED, ClipCache,
+                                      analyse_path, build_hhi_pairs, build_hsi_scenes, clip_joints, facing_xy)
 from model_runtime.skeleton import matrix_to_quat, standing_pelvis_height, yaw_matrix
 
 TURN_AT = (0.0, -2.0)      # where the L-shaped walk turns
@@ -117,10 +118,10 @@ def test_greet_and_blocker_partners_stand_in_front(lib):
     assert abs(rel[0]) < 0.3 and rel[1] < 0          # on the straight-ahead (-Y) line past the turn
 
 
-def test_default_pair_kinds_are_the_trained_ones(lib):
-    """The dropped "follow" rule (a leader walking ahead on the ego's path) is no default kind any more."""
+def test_real_clips_get_only_the_real_clip_kinds(lib):
+    """The dropped "follow" rule (a leader walking ahead on the ego's real walk) stays dropped: a real clip gets
+    no follow pair; the follow kind only comes with follow copies whose partner keeps walking (test_hhi_copies)."""
     kinds = {p.kind for p in build_hhi_pairs(lib, list(range(len(lib))), seed=2, per_clip=3)}
-    assert "follow" not in HHI_KINDS and "follow" not in kinds
     assert kinds == {"approach_face", "avoid_blocker", "greet"}
 
 
@@ -179,3 +180,18 @@ def test_hhi_pairs_can_be_limited_to_some_kinds(lib):
     assert some and {p.kind for p in some} <= {"approach_face", "greet"}
     assert {p.ego for p in some} >= {0, 2}          # a walk still gets approach_face, a gesture greet
     assert "avoid_blocker" in {p.kind for p in everything}   # so the filter did leave something out
+
+
+def test_mirrored_copies_get_the_pair_kinds_of_real_clips(lib):
+    """A mirrored copy is a real motion reflected, so it gets its source's pair kinds (it used to get
+    turn_to_face, the rule of turned standing clips, whatever its motion)."""
+    out, mirrored = add_mirrors(lib, list(range(len(lib))))
+    kinds = {(out.names[p.ego], p.kind) for p in build_hhi_pairs(out, mirrored, seed=0, per_clip=3)}
+    assert {k for _, k in kinds} == {"approach_face", "avoid_blocker", "greet"}
+    assert {("walk#mirror0", "approach_face"), ("turn#mirror0", "avoid_blocker"), ("wave#mirror0", "greet")} <= kinds
+
+
+def test_clip_cache_for_some_clips_gives_every_clip(lib):
+    cache = ClipCache(lib, [1, 3])
+    for i in range(len(lib)):
+        assert np.allclose(cache.joints(i), clip_joints(lib, i), atol=1e-5)

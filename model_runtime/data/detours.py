@@ -65,16 +65,22 @@ def bend_path(rotations: np.ndarray, pelvis: np.ndarray, yaw: np.ndarray) -> tup
     """Turn each frame's body by yaw[t] about its own pelvis and re-integrate the pelvis path from the turned
     per-frame steps (starting where the clip starts). rotations (T, 22, 4) w-first, pelvis (T, 3)."""
     rot, _ = turn_roots(rotations, yaw)
+    return rot, bend_pelvis(pelvis, yaw)
+
+
+def bend_pelvis(pelvis: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """The pelvis path of `bend_path` alone: each per-frame step turned by the mean yaw of its two frames and
+    re-integrated from the first frame (height unchanged)."""
     step = np.diff(pelvis[:, :2].astype(np.float64), axis=0)
     mid = 0.5 * (yaw[1:] + yaw[:-1])
     c, s = np.cos(mid), np.sin(mid)
     turned = np.stack((c * step[:, 0] - s * step[:, 1], s * step[:, 0] + c * step[:, 1]), -1)
     pel = pelvis.copy()
     pel[1:, :2] = (pelvis[0, :2].astype(np.float64) + np.cumsum(turned, 0)).astype(pel.dtype)
-    return rot, pel
+    return pel
 
 
-def _resample(rotations: np.ndarray, pelvis: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def resample(rotations: np.ndarray, pelvis: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pose at fractional frame times (slerp / lerp between neighbouring frames)."""
     lo = np.clip(np.floor(times).astype(np.int64), 0, len(pelvis) - 1)
     hi = np.minimum(lo + 1, len(pelvis) - 1)
@@ -90,7 +96,7 @@ def slow_to_rest(rotations: np.ndarray, pelvis: np.ndarray) -> tuple[np.ndarray,
     t = len(pelvis)
     x = np.arange(1, SLOW_OUT + 1) / SLOW_OUT
     times = (t - 1 - SLOW_IN) + SLOW_IN * (1 - (1 - x) ** 2)
-    q, p = _resample(rotations, pelvis, times)
+    q, p = resample(rotations, pelvis, times)
     keep = t - SLOW_IN
     return np.concatenate((rotations[:keep], q)), np.concatenate((pelvis[:keep], p))
 
@@ -126,20 +132,18 @@ def arrive(walk_rot: np.ndarray, walk_pel: np.ndarray, stand_rot: np.ndarray, st
 def straight_starts(xy: np.ndarray, length: int) -> np.ndarray:
     """Starts of the `length`-frame stretches of a smoothed pelvis path that walk straight at a walking pace:
     every point within STRAIGHTNESS of the stretch's chord, chord speed within WALK_SPEED."""
-    ok = []
-    for s in range(0, len(xy) - length + 1):
-        seg = xy[s:s + length]
-        line = seg[-1] - seg[0]
-        dist = float(np.linalg.norm(line))
-        if not WALK_SPEED[0] <= dist / ((length - 1) / FPS) <= WALK_SPEED[1]:
-            continue
-        n = np.array([-line[1], line[0]]) / dist
-        if np.abs((seg - seg[0]) @ n).max() < STRAIGHTNESS:
-            ok.append(s)
-    return np.asarray(ok, np.int64)
+    if length < 2 or len(xy) < length:
+        return np.zeros(0, np.int64)
+    seg = np.moveaxis(np.lib.stride_tricks.sliding_window_view(np.asarray(xy, np.float64), length, axis=0), -1, 1)
+    line = seg[:, -1] - seg[:, 0]                                   # (starts, 2) chords
+    dist = np.linalg.norm(line, axis=1)
+    speed = dist / ((length - 1) / FPS)
+    n = np.stack((-line[:, 1], line[:, 0]), -1) / np.maximum(dist, 1e-12)[:, None]
+    off = np.abs(((seg - seg[:, :1]) * n[:, None, :]).sum(-1)).max(1)
+    return np.flatnonzero((WALK_SPEED[0] <= speed) & (speed <= WALK_SPEED[1]) & (off < STRAIGHTNESS)).astype(np.int64)
 
 
-def _stop_frame(joints: np.ndarray, lo: int, hi: int) -> int:
+def stop_frame(joints: np.ndarray, lo: int, hi: int) -> int:
     """Frame in [lo, hi) where the ankles are closest in the floor plane (the swing foot passes the other)."""
     gap = np.linalg.norm(joints[lo:hi, ANKLES[0], :2] - joints[lo:hi, ANKLES[1], :2], axis=-1)
     return lo + int(np.argmin(gap))
@@ -179,7 +183,7 @@ def add_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[
             if not len(starts):
                 continue
             start = int(starts[int(rng.integers(len(starts)))])
-            stop = _stop_frame(clips.joints(i), start + walk - 6, start + walk + 1) + 1   # exclusive end of the walk
+            stop = stop_frame(clips.joints(i), start + walk - 6, start + walk + 1) + 1   # exclusive end of the walk
             w_rot = lib.rotations[a + start:a + stop]
             w_pel = lib.pelvis[a + start:a + stop]
             if kind == "detour":

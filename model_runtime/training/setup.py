@@ -69,12 +69,13 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         note(f"{len(mirrored)} mirrored copies of real clips")
     pairs_tr = pairs_va = scenes_tr = scenes_va = None
     if stage in ("hhi", "fwsr"):
+        from ..data.hhi_copies import add_hhi_copies
         from ..data.pairs import build_hhi_pairs
-        from ..data.turns import add_pivot_turns
-        note(f"building partners for {len(train_ids) + len(val_ids)} clips (turned copies of standing clips, "
-             "then HHI pairs) ...")
-        # turned copies of standing clips: the data has no turn on the spot (data/turns.py)
-        lib, train_ids, val_ids, pairs_tr, pairs_va = _derive_then_build(lib, train_ids, val_ids, add_pivot_turns,
+        note(f"building partners for {len(train_ids) + len(val_ids)} clips (turned, avoiding, stepping-aside, "
+             "stopping and following copies of real clips, then HHI pairs) ...")
+        # copies of real clips for what the data has no example of: a turn on the spot, getting out of a walker's
+        # way, stopping at someone, following someone (data/hhi_copies.py)
+        lib, train_ids, val_ids, pairs_tr, pairs_va = _derive_then_build(lib, train_ids, val_ids, add_hhi_copies,
                                                                          build_hhi_pairs, seed)
         note(f"{len(pairs_tr)} training and {len(pairs_va)} held-out HHI pairs")
         if not pairs_tr:

@@ -1,11 +1,13 @@
 """Interaction training data built from single-person clips: stand-ins for Inter-X (HHI) and LINGO (HSI).
 
 The open motion data has no two-person or scene-paired capture, so the interaction stages train on pairs
-generated here. The rule everywhere: the ego's motion is the *real*, unmodified clip; only the partner or
-the scene is invented, and it is placed so that the real motion reads as a plausible reaction to it. Every
-generator checks what it guarantees (a partner never closer than MIN_CLEARANCE to the ego; no ego joint
-below 1.5 m inside an obstacle, checked on the voxel grid the model will read) and resamples or skips a
-placement that breaks it.
+generated here. The ego's motion is a real clip, or a copy derived from one where the data holds no example
+of a reaction (turned on the spot, bent around a walker or a box, stopped, re-timed: data/turns.py,
+data/detours.py, data/hhi_copies.py); the partner or the scene is invented, or is a real walk moved and re-timed,
+and placed so that the ego's motion reads as a plausible reaction to it. Every generator checks what it
+guarantees (a partner never closer than MIN_CLEARANCE to the ego, AVOID_CLEARANCE for one passing close by; no
+ego joint below 1.5 m inside an obstacle, checked on the voxel grid the model will read) and resamples or skips
+a placement that breaks it.
 
     clips       clip analysis: joints, facing, pelvis path (travel, headings, turn), a per-build cache
     placement   partner bodies from other real clips, placed, scaled and time-shifted

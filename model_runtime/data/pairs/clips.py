@@ -119,28 +119,44 @@ def is_gesture(caption: str) -> bool:
 class ClipCache:
     """Per-build cache of FK joints and path analysis (each clip is needed many times)."""
 
-    def __init__(self, lib: ClipLibrary) -> None:
+    def __init__(self, lib: ClipLibrary, ids: list[int] | None = None) -> None:
+        """`ids`: the clips the first batched FK covers (default all); any other clip is computed on its own
+        when asked for."""
         self.lib = lib
+        self._ids = list(range(len(lib))) if ids is None else sorted(set(ids))
         self._j: dict[int, np.ndarray] = {}
         self._p: dict[int, PathInfo] = {}
+        self._batched = False
 
     def joints(self, i: int) -> np.ndarray:
-        if not self._j:
+        if not self._batched:
             self._all_joints()
+            self._batched = True
+        if i not in self._j:
+            self._j[i] = clip_joints(self.lib, i)
         return self._j[i]
 
     def _all_joints(self, chunk: int = 16384) -> None:
-        """FK of every clip in a few large batches (per-clip calls are ~50x slower on small clips)."""
+        """FK of the cached clips in a few large batches (per-clip calls are ~50x slower on small clips)."""
         lib = self.lib
-        q = torch.from_numpy(np.ascontiguousarray(lib.rotations))
-        p = torch.from_numpy(np.ascontiguousarray(lib.pelvis))
+        if len(self._ids) == len(lib):
+            q, p = lib.rotations, lib.pelvis
+        else:
+            rows = np.concatenate([np.arange(lib.offsets[i], lib.offsets[i + 1]) for i in self._ids] or
+                                  [np.zeros(0, np.int64)])
+            q, p = lib.rotations[rows], lib.pelvis[rows]
+        q = torch.from_numpy(np.ascontiguousarray(q))
+        p = torch.from_numpy(np.ascontiguousarray(p))
         parts = []
         with torch.no_grad():
             for a in range(0, len(q), chunk):
                 parts.append(forward_kinematics(quat_to_matrix(q[a:a + chunk]), p[a:a + chunk])[0].numpy())
         allj = np.concatenate(parts).astype(np.float32) if parts else np.zeros((0, 22, 3), np.float32)
-        for i in range(len(lib)):
-            self._j[i] = allj[lib.offsets[i]:lib.offsets[i + 1]]
+        at = 0
+        for i in self._ids:
+            n = lib.frames(i)
+            self._j[i] = allj[at:at + n]
+            at += n
 
     def path(self, i: int) -> PathInfo:
         if i not in self._p:

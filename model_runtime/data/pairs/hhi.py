@@ -1,5 +1,5 @@
-"""HHI pairs (stand-in for Inter-X), `build_hhi_pairs`: a real ego clip and an invented partner, one of four
-rules per pair:
+"""HHI pairs (stand-in for Inter-X), `build_hhi_pairs`: a real ego clip (or a copy derived from one) and a
+partner, one rule per pair:
     approach_face  a walking ego: a standing partner waits ~1 m beyond the point where the walk ends
                    (0.9-1.2 m, plus 0.3 s of the final speed: captured walks end mid-stride), facing
                    back along the walk, so the approach ends in front of and facing the partner.
@@ -8,14 +8,26 @@ rules per pair:
     avoid_blocker  a walk-turn clip: a standing partner on the straight-ahead line of the pre-turn walk,
                    0.6-1.1 m past the farthest point the ego's body reaches on that line, facing the
                    ego, so the turn reads as turning away from someone blocking the way.
-    turn_to_face   a turned copy of a standing clip (`<name>#turn<k>`, data/turns.py: the one exception to
-                   the real-ego rule, since no clip turns on the spot): a standing partner 1.0-2.4 m ahead
-                   of where the turn ends, facing the ego, so the turn reads as turning to face someone.
-Partners are bodies from *other* real standing clips, moved rigidly, with a random body scale in [0.9, 1.1]
-and a random timing offset in [-0.5, 0.5] s, never closer than MIN_CLEARANCE to the ego.
+    turn_to_face   a turned copy of a standing clip (`<name>#turn<k>`, data/turns.py, since no clip turns on
+                   the spot): a standing partner 1.0-2.4 m ahead of where the turn ends, facing the ego, so
+                   the turn reads as turning to face someone.
+    arrive_face    a walk slowed to rest (`<name>#arriveface<k>`, data/meeting.py): a standing partner 0.9-1.2 m
+                   ahead of where it stops, facing it, so the walk ends at rest in front of and facing them.
+    avoid_walker   a walk bent around a real walker crossing or coming head-on (`<name>#avoid<k>`,
+                   data/avoidance.py); the partner is that walker, at least AVOID_CLEARANCE away.
+    step_aside     a standing clip shifted off a real walker's line (`<name>#stepaside<k>`, data/avoidance.py);
+                   the partner is that walker, at least AVOID_CLEARANCE away.
+    follow         a walk re-timed behind a real walker on its line (`<name>#follow<k>`, data/following.py);
+                   the partner is that walker, never closer than FOLLOW_MIN_GAP (pelvis to pelvis).
+The first five place bodies from *other* real standing clips, moved rigidly, with a random body scale in
+[0.9, 1.1] and a random timing offset in [-0.5, 0.5] s, never closer than MIN_CLEARANCE to the ego. The
+walking partners of the last three were made with their copy and are stored as clips
+(new_clips.partner_clip_name); their clearance is checked again here on their FK joints. A mirrored copy
+(`<name>#mirror0`) is a real motion reflected and follows the real-clip rules.
 
-A "follow" rule (a walking partner ahead on the ego's own path) was tried and dropped: it taught the module
-to walk on toward a person ahead, into a partner standing 3 m away (model_runtime/train.py).
+An earlier "follow" rule put a walking leader ahead on the ego's real walk and was dropped: it taught the module
+to walk on toward a person ahead, into a partner standing 3 m away (model_runtime/train.py). The follow kind
+here only exists where the partner keeps walking, on a small share of the walks (data/following.py).
 """
 from __future__ import annotations
 
@@ -24,14 +36,23 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry import normalized
-from ..library import ClipLibrary, is_derived
-from .clips import MOVING_DISTANCE, ClipCache, PathInfo, is_gesture
+from ..library import ClipLibrary, derived_kind
+from ..new_clips import partner_clip_name
+from .clips import MOVING_DISTANCE, ClipCache, PathInfo, facing_xy, is_gesture
 from .placement import min_clearance, place_standing, standing_frames, standing_partners, standing_source
 
 MIN_CLEARANCE = 0.45      # m between any ego joint and any partner joint; accepted pairs keep at least this
+AVOID_CLEARANCE = 0.3     # m: the same for avoid_walker and step_aside, whose partner passes close by
+FOLLOW_MIN_GAP = 1.0      # m between the pelvises (floor plane) of a follow pair, at every frame
 SCALE_RANGE = (0.9, 1.1)  # partner body scale
 MAX_SHIFT = 5             # partner timing offset, frames (0.5 s at 10 fps)
-HHI_KINDS = ("approach_face", "greet", "avoid_blocker", "turn_to_face")
+ARRIVE_DISTANCE = (0.9, 1.2)   # m from where an arrive_face copy stops to its partner's pelvis
+HHI_KINDS = ("approach_face", "greet", "avoid_blocker", "turn_to_face", "arrive_face", "avoid_walker", "step_aside",
+             "follow")
+# the pair kind of each kind of derived copy (library.derived_kind); a mirrored copy takes the real-clip rules
+COPY_KINDS = {"turn": "turn_to_face", "arriveface": "arrive_face", "avoid": "avoid_walker",
+              "stepaside": "step_aside", "follow": "follow"}
+WALKING_PARTNER_KINDS = ("avoid_walker", "step_aside", "follow")   # the partner is the copy's partner clip
 
 
 @dataclass(eq=False)
@@ -70,6 +91,12 @@ def _hhi_one(kind: str, ego: int, clips: ClipCache, rng: np.random.Generator, st
         target = end + d * path.h_end + float(rng.uniform(-0.15, 0.15)) * side
         face = normalized(end - target)
         return place_standing(src, frames, int(frames[-1]), target, face, scale)
+    if kind == "arrive_face":
+        end = ej[-1, 0, :2].astype(np.float64)
+        face = facing_xy(ej[-1].astype(np.float64))
+        side = np.array([-face[1], face[0]])
+        target = end + float(rng.uniform(*ARRIVE_DISTANCE)) * face + float(rng.uniform(-0.1, 0.1)) * side
+        return place_standing(src, frames, int(frames[-1]), target, -face, scale)
     if kind == "turn_to_face":
         end = ej[-1, 0, :2].astype(np.float64)
         face = normalized(path.facing[-3:].mean(0))
@@ -98,21 +125,30 @@ def _hhi_one(kind: str, ego: int, clips: ClipCache, rng: np.random.Generator, st
 
 def build_hhi_pairs(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_clip: int = 2,
                     kinds: tuple[str, ...] = HHI_KINDS) -> list[HHIPair]:
-    """Up to `per_clip` HHI pairs per clip of `clip_ids` (rules in the module docstring), of the given kinds.
+    """Up to `per_clip` HHI pairs per clip of `clip_ids` (rules in the module docstring), of the given kinds;
+    one for a copy made with its own walking partner.
 
-    Clips no rule fits (e.g. dance, jumps, side steps) give none. Deterministic for a seed; a clip's pairs
-    do not depend on which other clips are in `clip_ids`. Every pair keeps the partner at least
-    MIN_CLEARANCE from the ego at every frame (placements that do not are resampled, then skipped).
+    Clips no rule fits (e.g. dance, jumps, side steps, partner clips) give none. Deterministic for a seed; a
+    clip's pairs do not depend on which other clips are in `clip_ids`. Every pair keeps the partner at least
+    MIN_CLEARANCE (AVOID_CLEARANCE for avoid_walker and step_aside) from the ego at every frame (placements
+    that do not are resampled, then skipped).
     """
-    clips = ClipCache(lib)
-    standing = standing_partners(clips)
+    index = {name: i for i, name in enumerate(lib.names)}
+    standing = standing_partners(lib)
+    walkers = [index.get(partner_clip_name(lib.names[i]), i) for i in clip_ids]
+    clips = ClipCache(lib, list(clip_ids) + walkers + standing)   # FK of the clips this build reads
     out: list[HHIPair] = []
     for ego in clip_ids:
         rng = np.random.default_rng([seed, int(ego)])
-        # the only derived clips are turned copies (data/turns.py)
-        rules = ["turn_to_face"] if is_derived(lib.names[ego]) else _hhi_kinds(clips.path(ego), lib.captions[ego])
+        copy = derived_kind(lib.names[ego])
+        rules = _hhi_kinds(clips.path(ego), lib.captions[ego]) if copy in ("", "mirror") else \
+            [COPY_KINDS[copy]] if copy in COPY_KINDS else []
         fits = [k for k in rules if k in kinds]
         if not fits or per_clip <= 0:
+            continue
+        if fits[0] in WALKING_PARTNER_KINDS:     # one partner per copy: the walker it was made with
+            pair = _walking_partner_pair(fits[0], ego, clips, index)
+            out += [pair] if pair is not None else []
             continue
         order = fits[:1] + [fits[1:][i] for i in rng.permutation(len(fits) - 1)]
         for n in range(per_clip):
@@ -124,3 +160,20 @@ def build_hhi_pairs(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_cl
                     out.append(HHIPair(int(ego), partner.astype(np.float32), kind))
                     break
     return out
+
+
+def _walking_partner_pair(kind: str, ego: int, clips: ClipCache, index: dict[str, int]) -> HHIPair | None:
+    """The pair of a copy made with its own walking partner, if that partner clip is in the library and keeps
+    the kind's distance on the FK joints."""
+    k = index.get(partner_clip_name(clips.lib.names[ego]))
+    if k is None or clips.lib.frames(k) != clips.lib.frames(ego):
+        return None
+    ej, pj = clips.joints(ego), clips.joints(k)
+    if not np.isfinite(pj).all():
+        return None
+    if kind == "follow":
+        ok = np.linalg.norm(ej[:, 0, :2] - pj[:, 0, :2], axis=-1).min() >= FOLLOW_MIN_GAP and \
+            min_clearance(ej, pj) >= MIN_CLEARANCE
+    else:
+        ok = min_clearance(ej, pj) >= AVOID_CLEARANCE
+    return HHIPair(int(ego), pj.astype(np.float32), kind) if ok else None

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..library import is_derived
-from .clips import ClipCache, facing_xy
+from ..library import ClipLibrary, is_derived
+from .clips import STANDING_RANGE, ClipCache, facing_xy
 
 
 def _rot2(c: float, s: float) -> np.ndarray:
@@ -44,10 +44,12 @@ def min_clearance(a: np.ndarray, b: np.ndarray) -> float:
     return float(d.min())
 
 
-def standing_partners(clips: ClipCache) -> list[int]:
-    """The library's standing clips: the sources of waiting partners."""
-    return [i for i in range(len(clips.lib))
-            if not is_derived(clips.lib.names[i]) and clips.path(i).standing]   # turned copies are no source
+def standing_partners(lib: ClipLibrary) -> list[int]:
+    """The library's standing clips (PathInfo.standing, read off the pelvis without FK): the sources of waiting
+    partners."""
+    return [i for i in range(len(lib)) if not is_derived(lib.names[i])     # turned copies are no source
+            and np.ptp(lib.pelvis[lib.offsets[i]:lib.offsets[i + 1], :2].astype(np.float64), axis=0).max()
+            <= STANDING_RANGE]
 
 
 def _pick(rng: np.random.Generator, pool: list[int], ego: int) -> int | None:

@@ -1,0 +1,44 @@
+"""Every derived clip the HHI stage trains on, in one derivation (`add_hhi_copies`):
+
+    turn        turned copies of standing clips (data/turns.py)
+    avoid       straight walks bent around a crossing or oncoming real walker (data/avoidance.py)
+    stepaside   calm standing clips stepping off a real walker's line (data/avoidance.py)
+    arriveface  straight walks slowed to rest into a calm standing clip, for a partner ahead (data/meeting.py)
+    follow      straight walks re-timed to follow a real walker (data/following.py)
+
+Only real clips are copied (a mirrored copy is no source; the random sides and angles cover both ways). Each
+copy keeps its source's held-out split and licence; partners and the standing clips a stop ends in are taken
+from clips of the same split.
+"""
+from __future__ import annotations
+
+from .avoidance import STEP_FRAMES, avoid_copies, step_aside_copies
+from .following import follow_copies
+from .library import ClipLibrary, is_derived
+from .meeting import MIN_STAND, arrive_face_copies
+from .new_clips import extend_library
+from .pairs import ClipCache
+from .stretches import WalkPool, by_split, calm_standing, walks
+from .turns import add_pivot_turns
+
+
+def add_hhi_copies(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[ClipLibrary, list[int]]:
+    """A new library: `lib` plus the HHI copies of the clips of `clip_ids` (with their partner clips). Returns
+    (library, indices of the copies that are egos). Deterministic for a seed; a clip's copies do not depend on
+    which other clips are in `clip_ids` (partners come from all of `lib`'s real clips); `lib`'s own clips keep
+    their indices."""
+    lib, turned = add_pivot_turns(lib, clip_ids, seed=seed)
+    real = [i for i in range(len(lib)) if not is_derived(lib.names[i])]
+    clips = ClipCache(lib, real)       # FK of the real clips only: the copies never start from a derived one
+    all_walks = WalkPool.of(clips, walks(lib, clips, real))
+    partners = {side: all_walks.split(side) for side in (False, True)}
+    own = set(clip_ids)
+    egos = all_walks.subset(own)
+    step_stands = [i for i in calm_standing(lib, clips, real, STEP_FRAMES[0]) if i in own]
+    end_stands = by_split(lib, calm_standing(lib, clips, real, MIN_STAND))
+    new = (avoid_copies(lib, clips, egos, partners, seed)
+           + step_aside_copies(lib, clips, step_stands, partners, seed)
+           + arrive_face_copies(lib, clips, egos, end_stands, seed)
+           + follow_copies(lib, clips, egos, partners, seed))
+    lib, copies = extend_library(lib, new)
+    return lib, turned + copies
