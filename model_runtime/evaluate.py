@@ -3,6 +3,7 @@
     python -m model_runtime.evaluate --library runs/clips.npz --json [--model PATH] [--plots runs/eval]
     python -m model_runtime.evaluate --data MOTION_FOLDER ...   # builds the clip cache first when it is missing
     python -m model_runtime.evaluate --behaviour --split val --json --plots DIR   # the behaviour suite
+    python -m model_runtime.evaluate --two-person FOLDER --json --plots DIR      # real two-person takes
 
 Runs only on the clip library's held-out split (ClipLibrary.split("val")), never on training clips, and
 prints one JSON object:
@@ -137,11 +138,17 @@ def main(argv: list[str] | None = None) -> int:
     if "--behaviour" in argv:   # the scenario-distribution suite has its own options
         from .behaviour.__main__ import main as behaviour_main
         return behaviour_main([a for a in argv if a != "--behaviour"])
+    if any(a == "--two-person" or a.startswith("--two-person=") for a in argv):   # its own options too
+        from .evaluation.real_pairs import main as real_pairs_main
+        return real_pairs_main(argv)
     ap = argparse.ArgumentParser(prog="python -m model_runtime.evaluate", description=__doc__.split("\n\n")[0],
                                  formatter_class=HelpFormatter)
     ap.add_argument("--behaviour", action="store_true",
                     help="run the behaviour suite instead: --split val|test --json --plots DIR "
                          "(python -m model_runtime.behaviour --help lists its options)")
+    ap.add_argument("--two-person", metavar="FOLDER",
+                    help="evaluate on real two-person takes instead: the ego replaces person B beside A's replay "
+                         "(--two-person FOLDER --help lists its options)")
     ap.add_argument("--library", default="runs/clips.npz",
                     help="clip cache .npz (built from --data and saved here when missing)")
     ap.add_argument("--data", default=None, help="motion folder to build a missing --library from")

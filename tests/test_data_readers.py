@@ -163,6 +163,33 @@ def test_added_rest_frame_is_dropped_with_a_warning(tmp_path):
     assert m.joints.shape[0] == 20
 
 
+def hand_written_rest_frame(path):
+    """Replace frame 0 of a BVH by a MotionBuilder-friendly CMU rest pose: whole-degree rotations (shoulders
+    turned by 21 deg), the root position of frame 1."""
+    lines = path.read_text().splitlines()
+    i = lines.index("MOTION") + 3
+    first, second = lines[i].split(), lines[i + 1].split()
+    rest = ["0"] * (len(first) - 3)
+    rest[6], rest[12] = "-21", "21"
+    lines[i] = " ".join(second[:3] + rest)
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_hand_written_rest_frame_is_dropped(tmp_path):
+    path = hand_written_rest_frame(humanoid_bvh(tmp_path / "mb.bvh", fps=120, amplitude=40)[0])
+    assert read_bvh(path).rest_lead_in() == 1
+    with pytest.warns(UserWarning, match="frame 0 is an added rest pose"):
+        assert load_motion(path).joints.shape[0] == 20
+    # a capture frame keeps its place even when its root holds still into frame 1
+    still = humanoid_bvh(tmp_path / "still.bvh", fps=120, amplitude=40)[0]
+    lines = still.read_text().splitlines()
+    i = lines.index("MOTION") + 3
+    lines[i] = " ".join(lines[i + 1].split()[:3] + lines[i].split()[3:])
+    still.write_text("\n".join(lines) + "\n")
+    assert read_bvh(still).rest_lead_in() == 0
+
+
 # ------------------------------------------------------------------------------ real clips
 
 def check_plausible(m, lo=0.7, hi=2.0):

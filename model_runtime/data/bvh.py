@@ -76,17 +76,26 @@ class BvhMotion:
     def rest_lead_in(self, rest_deg: float = 5.0, jump_deg: float = 10.0, max_s: float = 0.1) -> int:
         """How many leading frames to drop: 0, or 1 + the lead-in when frame 0 is an added rest pose.
 
-        Frame 0 counts as added when every rotation channel that moves in the clip is within
-        `rest_deg` of 0 (channels that never move, like uncaptured fingers, say nothing) and the pose
-        jumps by more than `jump_deg` into frame 1. The DAZ-friendly CMU files then blend from the
-        rest pose into the capture over a few frames; those frames, changing far faster than anything
-        later, go too (at most `max_s` seconds)."""
-        rot = [c for _, c, ch in self._columns() if ch.endswith("rotation")]
+        Frame 0 counts as added when the pose jumps by more than `jump_deg` into frame 1 and either
+        - every rotation channel that moves in the clip is within `rest_deg` of 0 (channels that never
+          move, like uncaptured fingers, say nothing): the DAZ-friendly CMU files; or
+        - it is a hand-written T-pose: every rotation a whole number of degrees, the root where it is in
+          frame 1 (the MotionBuilder-friendly CMU files, whose rest pose turns the shoulders by 21 deg).
+        The DAZ-friendly files then blend from the rest pose into the capture over a few frames; those
+        frames, changing far faster than anything later, go too (at most `max_s` seconds)."""
+        cols = self._columns()
+        rot = [c for _, c, ch in cols if ch.endswith("rotation")]
         if self.data.shape[0] < 4 or not rot:
             return 0
         r = self.data[:, rot]
         moving = np.ptp(r, axis=0) > 1e-3
-        if not moving.any() or np.abs(r[0, moving]).max() > rest_deg:
+        if not moving.any():
+            return 0
+        near_zero = np.abs(r[0, moving]).max() <= rest_deg
+        root_pos = [c for j, c, ch in cols if j == 0 and ch.endswith("position")]
+        written = bool(np.all(r[0] == np.round(r[0]))) and bool(root_pos) and \
+            np.allclose(self.data[0, root_pos], self.data[1, root_pos], rtol=0.0, atol=1e-4)
+        if not (near_zero or written):
             return 0
         step = np.abs((np.diff(r[:, moving], axis=0) + 180.0) % 360.0 - 180.0).max(axis=1)  # (T-1,)
         if step[0] <= jump_deg:

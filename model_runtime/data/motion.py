@@ -152,11 +152,23 @@ def _retarget_positions(path: Path, pos: np.ndarray, ends: np.ndarray, names: li
                         src_fps: float, bone_map: dict | None, caption: str | None,
                         unit_hint: float | None = None) -> Motion:
     """Source joint positions (any axes, any unit) -> SMPL-X motion at 10 fps."""
+    src = mapped_source(pos, ends, names, with_ends, bone_map, path.name)
+    return motion_from_source(src, src_fps, path, caption, unit_hint=unit_hint)
+
+
+def mapped_source(pos: np.ndarray, ends: np.ndarray, names: list[str], with_ends: list[str],
+                  bone_map: dict | None, rig: str) -> np.ndarray:
+    """A rig's joint positions (T, J, 3) -> the 22 SMPL-X joint targets (T, 22, 3) through its bone map
+    (guessed from the bone names when None)."""
     if bone_map is None:
         bone_map = guess_bone_map(names, end_sites=with_ends).mapping
-    validate_bone_map(bone_map, names, rig=path.name)
-    src = mapped_positions(pos, ends, names, bone_map)
-    r = retarget(src, unit_hint=unit_hint)
+    validate_bone_map(bone_map, names, rig=rig)
+    return mapped_positions(pos, ends, names, bone_map)
+
+
+def motion_from_source(src: np.ndarray, src_fps: float, path: Path, caption: str | None, **retarget_kw) -> Motion:
+    """Mapped source joints (T, 22, 3) at src_fps -> SMPL-X motion at 10 fps (retarget_kw: see `retarget`)."""
+    r = retarget(src, **retarget_kw)
     quats = matrix_to_quat(r.local_rot).numpy()
     rot, pelvis = slerp_resample(quats, r.pelvis.numpy(), src_fps)
     if rot.shape[0] < 2:

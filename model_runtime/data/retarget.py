@@ -290,13 +290,19 @@ class Retargeted:
     targets: np.ndarray          # (T, 22, 3) the IK targets (scaled source, Z-up, floor-aligned)
 
 
-def retarget(source: np.ndarray, unit: float | None = None, up: str | None = None,
-             unit_hint: float | None = None) -> Retargeted:
-    """Mapped source joints (T, 22, 3) in the file's axes and unit -> SMPL-X local rotations and pelvis.
+@dataclass
+class SourceFrame:
+    """How a source's coordinates become Z-up metres at SMPL-X's size."""
+    rotation: np.ndarray         # (3, 3) file axes -> Z up
+    up: str                      # '+Y', '+Z', ...
+    unit: float                  # metres per file unit
+    unit_name: str               # how the unit was found: "given", "declared" or the detected unit's name
+    scale: float                 # SMPL-X leg length / the source's leg length (in metres)
 
-    unit: metres per file unit (detected from the hip height when None; `unit_hint`, e.g. an ASF
-    file's declared unit, is taken when it gives a plausible hip height); up: '+Y', '+Z', ...
-    (detected when None)."""
+
+def source_frame(source: np.ndarray, unit: float | None = None, up: str | None = None,
+                 unit_hint: float | None = None) -> SourceFrame:
+    """The up axis, unit and leg scale of mapped source joints (T, 22, 3); see `retarget`."""
     if source.ndim != 3 or source.shape[1:] != (NUM_JOINTS, 3) or source.shape[0] < 1:
         raise InputError(f"retarget needs source joints of shape (T, 22, 3), got {source.shape}")
     if not np.isfinite(source).all():
@@ -313,9 +319,25 @@ def retarget(source: np.ndarray, unit: float | None = None, up: str | None = Non
         unit, unit_name = unit_hint, "declared"
     if unit is None:
         unit, unit_name = detect_unit(pts)
-    pts = pts * unit
-    scale = leg_length(_REST[None]) / max(leg_length(pts), 1e-9)
-    pts = pts * scale
+    scale = leg_length(_REST[None]) / max(leg_length(pts * unit), 1e-9)
+    return SourceFrame(rot, up, float(unit), unit_name, float(scale))
+
+
+def retarget(source: np.ndarray, unit: float | None = None, up: str | None = None,
+             unit_hint: float | None = None, scale: float | None = None) -> Retargeted:
+    """Mapped source joints (T, 22, 3) in the file's axes and unit -> SMPL-X local rotations and pelvis.
+
+    unit: metres per file unit (detected from the hip height when None; `unit_hint`, e.g. an ASF
+    file's declared unit, is taken when it gives a plausible hip height); up: '+Y', '+Z', ...
+    (detected when None); scale: the factor from source metres to the result (default: legs as long
+    as SMPL-X's). Several actors of one capture keep their placement when given one common scale."""
+    frame = source_frame(source, unit, up, unit_hint)
+    unit, up, unit_name = frame.unit, frame.up, frame.unit_name
+    if scale is None:
+        scale = frame.scale
+    elif not (np.isfinite(scale) and scale > 0):
+        raise InputError(f"retarget scale {scale} is not a positive number")
+    pts = (source @ frame.rotation.T) * unit * scale
     targets, pelvis_rot = ik_targets(pts)
     glob, pelvis = solve_rotations(targets, pelvis_rot)
     local = global_to_local(torch.from_numpy(glob)).float()
