@@ -5,11 +5,19 @@ Why: the prior trained without them turned clockwise in every measured "walks fo
 clockwise). A reflection cannot carry a preference for either way, so training on clip + mirror leaves no
 direction to learn.
 
-The reflection is x -> -x in the world (any vertical plane works: the features are canonicalised by yaw). On the
-SMPL-X skeleton, whose rest pose is left-right symmetric and whose local rotations are expressed in world-aligned
-rest frames, reflecting a rotation R is S R S with S = diag(-1, 1, 1): the quaternion (w, x, y, z) becomes
-(w, x, -y, -z). Then every left joint takes its right twin's rotation and back. Captions swap "left" and "right"
+The reflection is x -> -x in the world (any vertical plane works: the features are canonicalised by yaw). SMPL-X
+local rotations are expressed in world-aligned rest frames, so reflecting a rotation R is S R S with S = diag(-1, 1, 1): the quaternion (w, x, y, z) becomes
+(w, x, -y, -z), and every left joint takes its right twin's rotation and back. Captions swap "left" and "right"
 ("turns left" becomes "turns right").
+
+Known limit, measured: the SMPL-X rest skeleton is not quite left-right symmetric (its left hip sits 1.1 cm
+higher than its right, its ankle offsets differ by up to 3 cm), so reflected rotations on it tilt the pelvis
+(hips 2.3 cm apart in height) and put joints up to 5 cm from the exact reflection. And the VAE, trained on real
+clips only, reconstructs mirrored segments poorly (158 mm mean joint error against 100 mm on real ones, held-out
+clips of the data-folder library) and with a yaw error of about 20 degrees a segment. A per-joint correction
+(each joint's reflected rotation followed by the fixed rotation that turns its bone offsets onto its reflected
+twins') levels the hips and brings the joints within 1.2 cm of the reflection, but the VAE's error on such
+segments stays (231 mm, -10 degrees a segment): mirrored copies need a VAE trained on them too.
 
 Copies are named `<source name>#mirror0` and keep the source's licence and held-out split (`library.source_name`).
 """
