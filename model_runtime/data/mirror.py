@@ -7,8 +7,8 @@ direction to learn.
 
 The reflection is x -> -x in the world (any vertical plane works: the features are canonicalised by yaw). SMPL-X
 local rotations are expressed in world-aligned rest frames, so reflecting a rotation R is S R S with
-S = diag(-1, 1, 1) (the quaternion (w, x, y, z) becomes (w, x, -y, -z)), and every left joint takes its right twin's rotation and back. Captions swap "left" and "right"
-("turns left" becomes "turns right").
+S = diag(-1, 1, 1) (the quaternion (w, x, y, z) becomes (w, x, -y, -z)), and every left joint takes its right
+twin's rotation and back. Captions swap "left" and "right" ("turns left" becomes "turns right").
 
 Known limit, measured: the SMPL-X rest skeleton is not quite left-right symmetric (its left hip sits 1.1 cm
 higher than its right, its ankle offsets differ by up to 3 cm), so reflected rotations on it tilt the pelvis
