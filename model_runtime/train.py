@@ -57,6 +57,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--init-vae", default=None, metavar="FILE",
                     help="copy FILE's VAE and feature statistics and train the stages after it (for a new text "
                          "encoder or new captions: the VAE does not depend on text)")
+    ap.add_argument("--no-mirror", action="store_true",
+                    help="train without the mirrored copies of the clips (data/mirror.py)")
     ap.add_argument("--steps", type=int, default=None, help="steps per stage (default: the stage's RECIPE entry)")
     ap.add_argument("--batch", type=int, default=None, help="batch per rank (default: the stage's RECIPE entry)")
     ap.add_argument("--lr", type=float, default=None, help="learning rate (default: the stage's RECIPE entry)")
@@ -92,7 +94,8 @@ def main(argv: list[str] | None = None) -> int:
                 break
             left = None if deadline is None else max((deadline - time.time()) / 60, 1e-3)
             runs.append(train_stage(st, out, lib, config=args.config, steps=args.steps, batch=args.batch,
-                                    lr=args.lr, seed=args.seed, minutes=left, progress=progress))
+                                    lr=args.lr, seed=args.seed, minutes=left, progress=progress,
+                                    mirror=not args.no_mirror))
             if not runs[-1].finished:
                 break
     except RemogenError as exc:

@@ -69,3 +69,16 @@ def test_copies_keep_source_split_and_licence():
     for i in new:
         src = out.names.index(source_name(out.names[i]))
         assert out.is_held_out(i) == out.is_held_out(src) and out.frames(i) == out.frames(src)
+
+
+def test_denoising_stages_train_on_mirrored_copies_unless_told_not_to():
+    from model_runtime import load_model
+    from model_runtime.training.setup import build_samplers
+    from synthetic import synthetic_library
+    lib = synthetic_library(20, 40)
+    model = load_model(config="tiny")
+    with_copies, _ = build_samplers("prior", model, lib, seed=0, rank=0)
+    without, _ = build_samplers("prior", model, lib, seed=0, rank=0, mirror=False)
+    vae, _ = build_samplers("vae", model, lib, seed=0, rank=0)
+    count = lambda s: sum(s.lib.names[i].endswith("#mirror0") for i, _ in s.items)  # noqa: E731
+    assert count(with_copies) > 0 and count(without) == 0 and count(vae) == 0

@@ -34,7 +34,7 @@ def rank_and_world() -> tuple[int, int]:
 def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "default", steps: int | None = None,
                 batch: int | None = None, lr: float | None = None, seed: int = 0, minutes: float | None = None,
                 ckpt_minutes: float = 3.0, val_every: int = 250, val_batches: int = 4,
-                progress: bool = True) -> StageRun:
+                progress: bool = True, mirror: bool = True) -> StageRun:
     """Run (or resume) one stage: what was written and how far it got."""
     if stage not in STAGES:
         raise RemogenError(f"unknown stage {stage!r}; use one of {', '.join(STAGES)}")
@@ -91,7 +91,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         gen.set_state(st["gen"])
         step, wall = int(st["step"]), float(st["wall"])
         total = int(st.get("total", total)) if steps is None else total
-    tr, va = build_samplers(stage, model, lib, seed, rank, note)
+    tr, va = build_samplers(stage, model, lib, seed, rank, note, mirror=mirror)
     bar = None
     if progress and rank == 0:
         from tqdm import tqdm

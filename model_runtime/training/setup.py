@@ -55,12 +55,12 @@ def _derive_then_build(lib, train_ids: list[int], val_ids: list[int], derive: Ca
 
 
 def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int, rank: int,
-                   note: Callable[[str], None] = lambda msg: None
+                   note: Callable[[str], None] = lambda msg: None, mirror: bool = True
                    ) -> tuple[SegmentSampler, SegmentSampler | None]:
     """Training and validation samplers for a stage (interaction stages get generated pairs/scenes); no
     validation sampler (None) when no held-out clip fits the stage's pair rules."""
     train_ids, val_ids = lib.split("train"), lib.split("val")
-    if stage in MIRROR_STAGES:
+    if mirror and stage in MIRROR_STAGES:
         # mirrored copies first: the derivations below then see real clips only, as before (data/mirror.py)
         from ..data.mirror import add_mirrors
         lib, mirrored = add_mirrors(lib, train_ids + val_ids, seed=seed)
