@@ -60,6 +60,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     ap.add_argument("--no-control", action="store_true",
                     help="roll out without test-time control: what the model has learned by itself")
+    ap.add_argument("--prior-only", action="store_true",
+                    help="roll out the prior alone: alpha 0, no FWSR, planted-foot cleanup or control")
     ap.add_argument("--json", action="store_true", help="print the report as one JSON object")
     ap.add_argument("--plots", default=None, help="folder for top-view paths and stick-figure strips")
     ap.add_argument("--library", default=None,
@@ -97,8 +99,11 @@ def main(argv: list[str] | None = None) -> int:
     report = run_suite(model, args.split, families=args.families, episodes=args.episodes,
                        guidance=args.guidance, progress=lambda m: print(m, file=sys.stderr, flush=True),
                        library=library, diversity_seeds=args.diversity_seeds if args.diversity else 0,
-                       control=not args.no_control)
-    report["control"] = not args.no_control
+                       **({"alphas": (0.0,), "fwsr": False, "cleanup": False, "control": False} if args.prior_only
+                          else {"control": not args.no_control}))
+    report["control"] = not (args.no_control or args.prior_only)
+    if args.prior_only:
+        report["prior_only"] = True
     if args.library:
         report["reference"]["library"] = args.library
     if args.plots:

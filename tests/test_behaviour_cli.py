@@ -1,0 +1,29 @@
+"""The behaviour suite's command line: what --prior-only and --no-control roll out."""
+import json
+
+from model_runtime.behaviour.__main__ import main
+
+
+def _report(capsys, *flags):
+    assert main(["--families", "walk_forward", "--episodes", "1", "--json", *flags]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_prior_only_runs_alpha_0_without_fwsr_cleanup_or_control(capsys):
+    report = _report(capsys, "--prior-only")
+    assert report["prior_only"] is True and report["control"] is False
+    assert list(report["families"]["walk_forward"]) == ["alpha=0"]
+    from model_runtime import load_model
+    from model_runtime.behaviour import metrics as M
+    from model_runtime.behaviour.scenarios import draw_episodes
+    from model_runtime.behaviour.suite import roll_out
+    ego = roll_out(load_model(), draw_episodes("walk_forward", "val", 1)[0], 0.0, fwsr=False, cleanup=False,
+                   control=False)
+    assert abs(report["families"]["walk_forward"]["alpha=0"]["abs_net_yaw_mean_deg"]
+               - abs(M.net_yaw_deg(ego, 20.0))) < 1e-3
+
+
+def test_no_control_is_recorded_and_runs_both_alphas(capsys):
+    report = _report(capsys, "--no-control")
+    assert report["control"] is False and "prior_only" not in report
+    assert list(report["families"]["walk_forward"]) == ["alpha=0", "alpha=1"]
