@@ -217,3 +217,26 @@ def test_init_vae_from_another_preset_is_refused(tmp_path, lib):
     code = main(["prior", "--library", str(path), "--out", str(tmp_path / "b"), "--config", "tiny",
                  "--init-vae", str(tmp_path / "big.pt"), "--steps", "1", "--no-progress"])
     assert code == 2 and not (tmp_path / "b" / "model.pt").exists()
+
+
+def test_still_windows_sometimes_train_as_standing():
+    from model_runtime.features import features_from_pose
+    from model_runtime.training.recipe import STILL_CAPTION, STILL_SHARE
+    from model_runtime.training.samples import is_still
+    from model_runtime.skeleton import quat_to_matrix
+    rest = quat_to_matrix(torch.tensor([1.0, 0.0, 0.0, 0.0]).repeat(12, 22, 1))
+    pel = torch.zeros(12, 3)
+    still = features_from_pose(rest, pel)
+    walking = features_from_pose(rest, pel + torch.tensor([0.0, 0.12, 0.0]) * torch.arange(12.0).view(-1, 1))
+    assert is_still(still) and not is_still(walking)
+    model = load_model(config="tiny")
+    lib = synthetic_library(4, 40)
+    s = SegmentSampler(lib, [0], model.cfg, model.stats, seed=0)
+    counts = {"still": 0, "other": 0}
+    for _ in range(400):
+        caption = s._caption(still, 0)
+        counts["still" if caption == STILL_CAPTION else "other"] += 1
+        assert s._caption(walking, 0) == lib.captions[0]
+    assert abs(counts["still"] / 400 - STILL_SHARE) < 0.1
+    off = SegmentSampler(lib, [0], model.cfg, model.stats, seed=0, still_share=0.0)
+    assert off._caption(still, 0) == lib.captions[0]

@@ -22,8 +22,19 @@ import torch
 from ..config import ModelConfig
 from ..data.library import ClipLibrary
 from ..data.phrasings import pick_phrasing
-from ..features import FeatureStats, canonicalize, to_canonical, world_points_to_canonical
+from ..features import JOINT_DELTA, ROOT_T, FeatureStats, canonicalize, to_canonical, world_points_to_canonical
 from ..skeleton import NUM_JOINTS, forward_kinematics
+from .recipe import STILL_CAPTION, STILL_SHARE, STILL_SPEED, STILL_TRAVEL
+
+FPS = 10.0
+
+
+def is_still(window: torch.Tensor) -> bool:
+    """Whether a window of world features (T, 276) keeps still: its pelvis ends within STILL_TRAVEL m of where it
+    started (floor plane) and its joints move slower than STILL_SPEED m/s on average."""
+    travel = float(torch.linalg.vector_norm(window[-1, ROOT_T][:2] - window[0, ROOT_T][:2]))
+    steps = window[:, JOINT_DELTA].reshape(window.shape[0], NUM_JOINTS, 3)
+    return travel < STILL_TRAVEL and float(torch.linalg.vector_norm(steps, dim=-1).mean()) * FPS < STILL_SPEED
 
 INTERACTION_RANGE = 2.5   # m between the pelvises: the partner is close enough to shape the next segment
 INTERACTION_SHARE = 0.5   # share of HHI windows drawn among those in range
@@ -53,8 +64,10 @@ class SegmentSampler:
     """Random segments from a set of clips (optionally with HHI pairs or HSI scenes)."""
 
     def __init__(self, lib: ClipLibrary, clip_ids: list[int], cfg: ModelConfig, stats: FeatureStats,
-                 seed: int = 0, pairs: list | None = None, scenes: list | None = None) -> None:
+                 seed: int = 0, pairs: list | None = None, scenes: list | None = None,
+                 still_share: float = STILL_SHARE) -> None:
         self.lib, self.cfg, self.stats = lib, cfg, stats
+        self.still_share = still_share
         self.pairs, self.scenes = pairs, scenes
         self.span = cfg.history + cfg.future
         if pairs is not None:
@@ -112,6 +125,14 @@ class SegmentSampler:
             return int(c[int(torch.randint(0, len(c), (1,), generator=self.gen))])
         return int(torch.randint(0, rows - self.span + 1, (1,), generator=self.gen))
 
+    def _caption(self, window: torch.Tensor, clip: int) -> str:
+        """The caption a window trains with (one of its phrasings is drawn after): its clip's, or, for a window
+        whose body keeps still, STILL_CAPTION a share of the time (recipe.py says why)."""
+        if self.still_share > 0.0 and is_still(window) and \
+                float(torch.rand((), generator=self.gen)) < self.still_share:
+            return STILL_CAPTION
+        return self.lib.captions[clip]
+
     def _partner_world(self, k: int) -> torch.Tensor:
         if k not in self._partner_cache:
             self._partner_cache[k] = torch.from_numpy(np.asarray(self.pairs[k].partner, np.float32))
@@ -130,7 +151,7 @@ class SegmentSampler:
             seg = self.stats.normalize(seg)
             hist.append(seg[:h])
             fut.append(seg[h:])
-            texts.append(pick_phrasing(self.lib.captions[clip], self.gen))   # one of its phrasings per window
+            texts.append(pick_phrasing(self._caption(feats[s:s + self.span], clip), self.gen))
             if self.pairs is not None:
                 lag = int(torch.randint(0, f + 1, (1,), generator=self.gen))
                 end = s + h - 1 - lag  # last partner frame seen by the diffusion
