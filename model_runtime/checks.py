@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -98,3 +98,21 @@ def check_control_config(value: Any) -> Any:
     if not isinstance(value, ControlConfig):
         raise InputError("control_config must be a model_runtime.ControlConfig")
     return value
+
+
+class Checked:
+    """An attribute whose every assignment goes through `check` (which raises a one-line InputError for bad
+    input and returns the value to keep), stored as `_<name>` on the instance."""
+
+    def __init__(self, check: Callable[[Any], Any], doc: str | None = None) -> None:
+        self.check = check
+        self.__doc__ = doc
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.slot = "_" + name
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        return self if obj is None else getattr(obj, self.slot)
+
+    def __set__(self, obj: Any, value: Any) -> None:
+        setattr(obj, self.slot, self.check(value))

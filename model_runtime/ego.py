@@ -14,7 +14,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 import torch
 
-from .checks import check_alpha, check_guidance, check_point, check_seed, check_text
+from .checks import Checked, check_alpha, check_guidance, check_point, check_seed, check_text
 from .control import ControlConfig, ControlTargets, partner_future, passing_away, passing_reaches
 from .distance_field import DistanceField
 from .errors import MAX_COORD, InputError
@@ -112,14 +112,7 @@ class Ego:
         self.reset(self.start_history())
 
     # ------------------------------------------------------------------ live settings
-    @property
-    def seed(self) -> int:
-        """The noise seed; used from the next reset()."""
-        return self._seed
-
-    @seed.setter
-    def seed(self, value: int) -> None:
-        self._seed = check_seed(value)
+    seed = Checked(check_seed, "The noise seed; used from the next reset().")
 
     @property
     def text(self) -> str:
@@ -139,21 +132,8 @@ class Ego:
     def alpha(self, value: dict | None) -> None:
         self._alpha = check_alpha(value)
 
-    @property
-    def guidance(self) -> float:
-        return self._guidance
-
-    @guidance.setter
-    def guidance(self, value: float) -> None:
-        self._guidance = check_guidance(value)
-
-    @property
-    def fwsr(self) -> bool:
-        return self._fwsr
-
-    @fwsr.setter
-    def fwsr(self, value: bool) -> None:
-        self._fwsr = bool(value)
+    guidance = Checked(check_guidance)
+    fwsr = Checked(bool)
 
     @property
     def cleanup(self) -> bool:

@@ -33,7 +33,7 @@ from typing import Any, Sequence
 import numpy as np
 import torch
 
-from .checks import check_control_config, check_partner, check_point, check_scene
+from .checks import Checked, check_control_config, check_partner, check_point, check_scene
 from .control import ControlConfig, LatentSteer, SegmentCosts
 from .distance_field import DistanceField
 from .ego import Ego, EgoFrame, EgoSettings, frames_from_world_features, output_problem
@@ -62,30 +62,10 @@ class ReactionGroup:
         self.reset()
 
     # ------------------------------------------------------------------ settings shared by every ego
-    @property
-    def control(self) -> bool:
-        """Test-time control (control.py): steer each segment with cost gradients. From the next segment on."""
-        return self._control
-
-    @control.setter
-    def control(self, value: bool) -> None:
-        self._control = bool(value)
-
-    @property
-    def control_config(self) -> ControlConfig:
-        return self._control_config
-
-    @control_config.setter
-    def control_config(self, value: ControlConfig) -> None:
-        self._control_config = check_control_config(value)
-
-    @property
-    def scene(self) -> Any:
-        return self._scene
-
-    @scene.setter
-    def scene(self, value: Any) -> None:
-        self._scene = check_scene(value)
+    control = Checked(bool, "Test-time control (control.py): steer each segment with cost gradients. From the next "
+                            "segment on.")
+    control_config = Checked(check_control_config)
+    scene = Checked(check_scene)
 
     # ------------------------------------------------------------------ reset
     def reset(self, root_positions: Sequence | None = None, yaws: Sequence[float] | None = None,

@@ -64,7 +64,8 @@ def diversity_table(report: dict) -> str:
     return "\n".join(head + rows) + "\n" + foot
 
 
-# (row name, target, family, summary key, unit, decimals); the seam row is added from the worst family
+_SEAM_ROW = None   # where the worst family's seam ratio goes
+# (row name, target, family, summary key, unit, decimals)
 _TARGET_ROWS = (
     ("partner crossing: episodes with min joint clearance >= 0.10 m", ">= 90 % at alpha 1", "crossing",
      "percent_clear_10cm", " %", 1),
@@ -76,6 +77,7 @@ _TARGET_ROWS = (
     ("goal past obstacles: reached within 0.5 m in 12 s", ">= 90 %", "obstacles", "reach_percent", " %", 1),
     ("goal past obstacles: distance 2 s after arrival", "<= 0.3 m", "obstacles", "settle_mean_m", " m", 2),
     ("goal past obstacles: frames with a joint inside", "<= 1 %", "obstacles", "inside_obstacle_percent", " %", 2),
+    _SEAM_ROW,
     ("planted-toe speed, walk forward", "<= 5 cm/s", "walk_forward", "planted_toe_cm_s", " cm/s", 2),
     ("planted-toe speed, stand", "<= 1 cm/s", "stand", "planted_toe_cm_s", " cm/s", 2),
     ("mean abs net yaw per 20 s, walk forward", "<= 20 deg", "walk_forward", "abs_net_yaw_mean_deg", " deg", 1),
@@ -107,15 +109,18 @@ def targets_table(report: dict) -> str:
     control = {True: "control on", False: "control off"}.get(report.get("control"), "")
     head = [f"| metric ({n} episodes a family, {report.get('split', '?')} split{', ' + control if control else ''}) "
             "| target | alpha 1 | alpha 0 |", "|---|---|---|---|"]
+    worst = {a: max(((v, f) for (f, b), v in seams.items() if b == a), default=(None, "-")) for a in (1, 0)}
     rows = []
-    for name, target, family, key, unit, nd in _TARGET_ROWS:
+    for row in _TARGET_ROWS:
+        if row is _SEAM_ROW:
+            if seams:
+                rows.append(f"| seam ratio, worst family ({worst[1][1]} at alpha 1; {worst[0][1]} at alpha 0) | "
+                            f"<= 1.3 | {_fmt(worst[1][0], '', 2)} | {_fmt(worst[0][0], '', 2)} |")
+            continue
+        name, target, family, key, unit, nd = row
         if family in fam:
             rows.append(f"| {name} | {target} | {_fmt(_value(fam, family, 1, key), unit, nd)} | "
                         f"{_fmt(_value(fam, family, 0, key), unit, nd)} |")
-    if seams:
-        worst = {a: max(((v, f) for (f, b), v in seams.items() if b == a), default=(None, "-")) for a in (1, 0)}
-        rows.insert(9, f"| seam ratio, worst family ({worst[1][1]} at alpha 1; {worst[0][1]} at alpha 0) | <= 1.3 | "
-                       f"{_fmt(worst[1][0], '', 2)} | {_fmt(worst[0][0], '', 2)} |")
     per_family = ", ".join(f"{f} {_fmt(seams.get((f, 1)), '', 2)} / {_fmt(seams.get((f, 0)), '', 2)}"
                            for f in dict.fromkeys(f for f, _ in seams))
     foot = f"\nSeam ratio per family (alpha 1 / 0): {per_family}." if seams else ""
