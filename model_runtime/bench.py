@@ -12,6 +12,11 @@ so both Meta-Interaction Modules run. "groupN" (e.g. group8) times one live tick
 ReactionGroup and, interleaved tick by tick in the same run, N separate ReactionSessions stepped one
 after another (row mode "separateN"); the group row also gives p50 and p99 of group / separate. Weights
 are random unless --model is given: speed does not depend on their values.
+
+"model" times the networks alone, the work the paper's per-frame latency counts: at each segment start a full
+reverse diffusion (guidance 5, both Meta-Interaction Modules) and its decode, and every frame an FWSR
+refinement and its decode; no test-time control, cleanup, kinematics or scene voxelisation. It is the one mode
+that runs on a GPU (--device cuda, or auto): the session's own work stays on the CPU.
 """
 from __future__ import annotations
 
@@ -48,6 +53,39 @@ def run_case(model, mode: str, frames: int, warmup: int, scene) -> dict:
         dt = (time.perf_counter() - t0) * 1000.0
         if i >= warmup:
             times.append(dt)
+    return _percentiles(times)
+
+
+@torch.no_grad()
+def run_model_case(model, frames: int, warmup: int, device: torch.device) -> dict:
+    """Per-frame time of the networks alone on `device` (see the module docstring), synchronised per frame."""
+    cfg = model.cfg
+    model.to(device).eval()
+    gen = torch.Generator().manual_seed(0)
+    res = cfg.voxel_resolution
+    hist = torch.randn(1, cfg.history, cfg.feature_dim, generator=gen).to(device)
+    partner = torch.randn(1, cfg.partner_window, 22, 3, generator=gen).to(device)
+    present = torch.ones(1, cfg.partner_window, dtype=torch.bool, device=device)
+    occupancy = (torch.rand(1, res, res, res, generator=gen) < 0.1).float().to(device)
+    goal = torch.tensor([[0.0, -3.0, 0.0]], device=device)
+    text = model.encode_text("walk to the person and wave").to(device)
+    alpha = {"hhi": 1.0, "hsi": 1.0}
+    sync = torch.cuda.synchronize if device.type == "cuda" else (lambda: None)
+    times, z0 = [], None
+    for i in range(warmup + frames):
+        sync()
+        t0 = time.perf_counter()
+        f = i % cfg.future
+        if f == 0:
+            ctx = model.encode_contexts(partner, present, occupancy, goal, alpha)
+            z0 = model.sample_latent(hist, text, ctx, alpha, 5.0, gen)
+            model.decode(hist, z0)
+        z = model.refine(z0, hist, partner[:, -cfg.history:], present[:, -cfg.history:], f)
+        model.decode(hist, z)[:, f].cpu()   # the frame the runtime hands on, back in host memory
+        sync()
+        if i >= warmup:
+            times.append((time.perf_counter() - t0) * 1000.0)
+    model.cpu()
     return _percentiles(times)
 
 
@@ -101,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true", help="print JSON lines only")
     ap.add_argument("--configs", default="default,paper", help="comma-separated model presets: tiny, default, paper")
     ap.add_argument("--modes", default="segment,fwsr,fwsr-nocontrol,fwsr-raw,slide,group8",
-                    help="comma-separated modes: segment, fwsr, fwsr-nocontrol (no test-time control), "
+                    help="comma-separated modes: model (the networks alone), segment, fwsr, fwsr-nocontrol (no test-time control), "
                          "fwsr-raw (no control, no foot cleanup), slide, groupN (N egos as one group against "
                          "N separate sessions, e.g. group8)")
     ap.add_argument("--frames", type=int, default=300, help="timed frames per case (segment and fwsr modes)")
@@ -109,9 +147,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--warmup", type=int, default=24, help="untimed frames before timing")
     ap.add_argument("--threads", type=int, default=0, help="torch threads (0 = the measured best per config)")
     ap.add_argument("--model", default=None, help="a model file instead of random weights (its config is used)")
+    ap.add_argument("--device", default="cpu", help="cpu, cuda or auto; anything but cpu runs the model mode only")
     ap.add_argument("--precisions", default="fp32,bf16:paper,int8:paper",
                     help="precisions to run; 'bf16:paper' = bf16 for the paper config only")
     args = ap.parse_args(argv)
+    device = torch.device("cuda" if args.device == "auto" and torch.cuda.is_available() else
+                          "cpu" if args.device == "auto" else args.device)
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise SystemExit("bench: --device cuda, but this PyTorch sees no CUDA GPU; use --device cpu")
+    if device.type != "cpu" and set(args.modes.split(",")) != {"model"}:
+        raise SystemExit(f"bench: only the model mode runs on {device}; pass --modes model")
     scene = box_scene()
     rows = []
     for cfg in args.configs.split(","):
@@ -123,13 +168,17 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             model = load_model(args.model, precision=prec) if args.model else load_model(config=cfg, precision=prec)
             for mode in args.modes.split(","):
-                common = {"threads": threads, "precision": prec, "scene": scene is not None}
+                common = {"threads": threads, "precision": prec, "scene": scene is not None,
+                          "device": torch.cuda.get_device_name(device) if device.type == "cuda" else "cpu"}
                 if mode.startswith("group"):
                     egos = _group_size(mode)
                     together, apart = run_group_case(model, egos, args.frames, args.warmup, scene)
                     ratio = {f"ratio_{k}": round(together[k] / apart[k], 3) for k in ("p50_ms", "p99_ms")}
                     found = [{"config": cfg, "mode": mode, **together, **ratio, "egos": egos, **common},
                              {"config": cfg, "mode": f"separate{egos}", **apart, "egos": egos, **common}]
+                elif mode == "model":
+                    found = [{"config": cfg, "mode": mode, **run_model_case(model, args.frames, args.warmup, device),
+                              **common}]
                 else:
                     n = args.slide_frames if mode == "slide" else args.frames
                     found = [{"config": cfg, "mode": mode, **run_case(model, mode, n, args.warmup, scene), **common}]

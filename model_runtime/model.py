@@ -66,18 +66,20 @@ def _rows_of(on: torch.Tensor) -> torch.Tensor | None | bool:
     return idx if idx.numel() else False
 
 
-def _alpha_on(active: dict[str, float] | list[dict[str, float]], name: str, b: int) -> torch.Tensor:
+def _alpha_on(active: dict[str, float] | list[dict[str, float]], name: str, b: int,
+              device: torch.device | None = None) -> torch.Tensor:
     """(b,) bool: which rows give module `name` a non-zero alpha (one dict: all rows alike)."""
     if isinstance(active, dict):
-        return torch.full((b,), active.get(name, 0.0) != 0.0)
-    return torch.tensor([a.get(name, 0.0) != 0.0 for a in active], dtype=torch.bool)
+        return torch.full((b,), active.get(name, 0.0) != 0.0, device=device)
+    return torch.tensor([a.get(name, 0.0) != 0.0 for a in active], dtype=torch.bool, device=device)
 
 
-def _per_row(values: list[float], n: int, dtype: torch.dtype) -> float | torch.Tensor:
+def _per_row(values: list[float], n: int, dtype: torch.dtype, device: torch.device | None = None
+             ) -> float | torch.Tensor:
     """One number when every row shares it (the single-ego path stays exactly as it was), else (n*B, 1, 1)."""
     if all(v == values[0] for v in values):
         return values[0]
-    return torch.tensor(values, dtype=dtype).repeat(n).view(-1, 1, 1)
+    return torch.tensor(values, dtype=dtype, device=device).repeat(n).view(-1, 1, 1)
 
 
 class ReMoGenModel(nn.Module):
@@ -167,7 +169,7 @@ class ReMoGenModel(nn.Module):
         if partner is not None and present is not None:
             b = partner.shape[0]
             cue = present.any(1) if per_row else present.any().expand(b)
-            r = _rows_of(cue & _alpha_on(active, "hhi", b))
+            r = _rows_of(cue & _alpha_on(active, "hhi", b, cue.device))
             if r is not False:
                 p, m = (partner, present) if r is None else (partner[r], present[r])
                 items["hhi"] = (self.mims["hhi"].encoder(p.to(dt), m), m)
@@ -175,12 +177,13 @@ class ReMoGenModel(nn.Module):
                     rows["hhi"] = r
         if occupancy is not None or goal is not None:
             b = (occupancy if occupancy is not None else goal).shape[0]
-            has = has_goal if has_goal is not None else torch.full((b,), goal is not None)
-            r = _rows_of((has | (occupancy is not None)) & _alpha_on(active, "hsi", b))
+            dev = (occupancy if occupancy is not None else goal).device
+            has = has_goal if has_goal is not None else torch.full((b,), goal is not None, device=dev)
+            r = _rows_of((has | (occupancy is not None)) & _alpha_on(active, "hsi", b, dev))
             if r is not False:
                 res = self.cfg.voxel_resolution
-                occ = occupancy if occupancy is not None else torch.zeros(b, res, res, res)
-                g = goal if goal is not None else torch.zeros(b, 3)
+                occ = occupancy if occupancy is not None else torch.zeros(b, res, res, res, device=dev)
+                g = goal if goal is not None else torch.zeros(b, 3, device=dev)
                 if r is not None:
                     occ, g, has = occ[r], g[r], has[r]
                     rows["hsi"] = r
@@ -204,12 +207,12 @@ class ReMoGenModel(nn.Module):
         n = 2 if use_cfg else 1
         cache = {} if cache is None else cache
         if ("cond", n) not in cache:
-            drop = torch.zeros(n * b, dtype=torch.bool)
+            drop = torch.zeros(n * b, dtype=torch.bool, device=z_t.device)
             drop[b:] = True
             text_tok = self.denoiser.text_tokens(text_emb.to(dt).expand(b, -1).repeat(n, 1), drop)
             cache[("cond", n)] = self.denoiser.condition_tokens(hist.to(dt).repeat(n, 1, 1), text_tok)
         if ("temb", n) not in cache:
-            steps = torch.arange(self.cfg.diffusion_steps).repeat_interleave(n * b)
+            steps = torch.arange(self.cfg.diffusion_steps, device=z_t.device).repeat_interleave(n * b)
             cache[("temb", n)] = self.denoiser.time_tokens(steps).view(self.cfg.diffusion_steps, n * b, 1, -1)
         ctx = contexts.repeat(n)
         inject = self.injector(ctx, alpha)
@@ -218,7 +221,7 @@ class ReMoGenModel(nn.Module):
         if not use_cfg:
             return x0
         cond, uncond = x0[:b], x0[b:]
-        w = _per_row(scales, 1, torch.float32)
+        w = _per_row(scales, 1, torch.float32, x0.device)
         guided = uncond + w * (cond - uncond)
         # a row with guidance 1 is its conditional pass exactly, as it is without the others
         return guided if not torch.is_tensor(w) else torch.where(w == 1.0, cond, guided)
@@ -247,7 +250,7 @@ class ReMoGenModel(nn.Module):
                         delta = torch.zeros_like(h)
                         delta[rows] = block(h[rows], tok, mask, ctx.kv(k, layer, block))
                         deltas.append(delta)
-                    weights.append(_per_row(values[k], h.shape[0] // len(alphas), h.dtype))
+                    weights.append(_per_row(values[k], h.shape[0] // len(alphas), h.dtype, h.device))
             return compose_residuals(deltas, weights)
 
         return inject
@@ -265,7 +268,8 @@ class ReMoGenModel(nn.Module):
 
     def refine(self, z0: torch.Tensor, hist: torch.Tensor, partner: torch.Tensor, present: torch.Tensor,
                frame: int) -> torch.Tensor:
-        return self.fwsr(z0, hist, partner, present, torch.full((z0.shape[0],), frame, dtype=torch.long))
+        return self.fwsr(z0, hist, partner, present,
+                         torch.full((z0.shape[0],), frame, dtype=torch.long, device=z0.device))
 
     @torch.no_grad()
     def compute_decoder_sensitivity(self, hist: torch.Tensor, z: torch.Tensor, eps: float = 1e-2) -> torch.Tensor:
@@ -317,7 +321,7 @@ class DiffusionJob:
         self.gen = generator
         cfg = model.cfg
         shape = (hist.shape[0], cfg.latent_tokens, cfg.latent_dim)
-        self.z = _noise(shape, generator)
+        self.z = _noise(shape, generator).to(hist.device)   # drawn on the CPU: the same noise on any device
         self.t = cfg.diffusion_steps - 1
         self._clean: torch.Tensor | None = None     # the denoised latent while final steers remain
         self._steers_left = self.final_steers
@@ -355,7 +359,7 @@ class DiffusionJob:
                 if self.t == 0:
                     self._clean = x0
                 else:
-                    noise = _noise(self.z.shape, self.gen)
+                    noise = _noise(self.z.shape, self.gen).to(self.z.device)
                     self.z = self.model.schedule.step(self.z, self.t, x0, noise)
                     self.t -= 1
             if self._clean is not None and self._steers_left == 0:

@@ -15,9 +15,14 @@ runs the five stages in order within one time budget, skips stages already done,
 ran out of time, and ends with a summary: steps per stage, best held-out loss, files written and the
 command that continues the run.
 
+GPU: with a CUDA GPU present the model trains on it (--device auto, the default; --device cpu forces the CPU)
+and background processes draw the batches (--workers, default 8 on a GPU, 0 on the CPU): drawing a batch in
+Python is slower than a GPU step of the default model. The model files hold CPU tensors either way.
+
 Multi-process / multi-machine: `torchrun --nproc_per_node N -m model_runtime.train STAGE ...` runs
-DistributedDataParallel over gloo on CPU cores; each rank draws its own batches (so --batch is per rank:
-8 ranks at --batch 16 train with the recipe's 128 per step).
+DistributedDataParallel, over nccl with one GPU per rank (rank r on cuda:LOCAL_RANK) or over gloo on CPU
+cores; each rank draws its own batches (so --batch is per rank: 8 ranks at --batch 16 train with the
+recipe's 128 per step).
 """
 from __future__ import annotations
 
@@ -66,12 +71,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--minutes", type=float, default=None,
                     help="stop this run after so many minutes (rerun the same command to continue)")
     ap.add_argument("--threads", type=int, default=0, help="torch threads (0: PyTorch's default)")
+    ap.add_argument("--device", default="auto", help="auto (a CUDA GPU when there is one, else the CPU), cpu, "
+                    "cuda or cuda:N")
+    ap.add_argument("--workers", type=int, default=None,
+                    help="background processes drawing batches (default: 8 on a GPU, 0 on the CPU)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bars or status lines")
     args = ap.parse_args(argv)
     if args.threads:
         torch.set_num_threads(args.threads)
+    try:
+        device = training_device(args.device)
+    except RemogenError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    workers = args.workers if args.workers is not None else (8 if device.type == "cuda" else 0)
     if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not dist.is_initialized():
-        dist.init_process_group("gloo")   # training runs on CPU tensors (the model is small); nccl needs CUDA ones
+        dist.init_process_group("nccl" if device.type == "cuda" else "gloo")   # nccl moves CUDA tensors only
     rank, world = rank_and_world()
     progress = not args.no_progress and rank == 0
     runs: list[StageRun] = []
@@ -95,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
             left = None if deadline is None else max((deadline - time.time()) / 60, 1e-3)
             runs.append(train_stage(st, out, lib, config=args.config, steps=args.steps, batch=args.batch,
                                     lr=args.lr, seed=args.seed, minutes=left, progress=progress,
-                                    mirror=not args.no_mirror))
+                                    mirror=not args.no_mirror, device=device, workers=workers))
             if not runs[-1].finished:
                 break
     except RemogenError as exc:
@@ -110,6 +125,27 @@ def main(argv: list[str] | None = None) -> int:
     if rank == 0:
         print(summary(runs, STAGES, argv, world), file=sys.stderr)
     return 0
+
+
+def training_device(name: str) -> torch.device:
+    """The device a run trains on. Under torchrun with CUDA each rank takes the GPU LOCAL_RANK."""
+    if name == "auto":
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    try:
+        device = torch.device(name)
+    except RuntimeError:
+        raise RemogenError(f"--device {name!r} is not a device; use auto, cpu, cuda or cuda:N") from None
+    if device.type not in ("cpu", "cuda"):
+        raise RemogenError(f"--device {name!r}: training runs on cpu or cuda; use auto, cpu, cuda or cuda:N")
+    if device.type == "cuda":
+        if not torch.cuda.is_available():
+            raise RemogenError(f"--device {name}: this PyTorch sees no CUDA GPU; use --device cpu (or auto)")
+        if device.index is None:
+            device = torch.device("cuda", int(os.environ.get("LOCAL_RANK", "0")))
+        if device.index >= torch.cuda.device_count():
+            raise RemogenError(f"--device {device}: only {torch.cuda.device_count()} GPU(s) are visible")
+        torch.cuda.set_device(device)
+    return device
 
 
 def _load_library(args: argparse.Namespace, progress: bool) -> ClipLibrary:

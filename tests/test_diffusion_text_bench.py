@@ -57,3 +57,15 @@ def test_bench_prints_all_rows(capsys):
     assert [r["mode"] for r in rows] == ["segment", "fwsr", "fwsr-nocontrol", "fwsr-raw", "slide", "group8", "separate8"]
     for r in rows:
         assert {"config", "mode", "p50_ms", "p99_ms", "frames"} <= set(r) and r["p99_ms"] >= r["p50_ms"] > 0
+
+
+def test_bench_model_mode_times_the_networks_and_refuses_session_modes_on_a_gpu(capsys):
+    import json
+    from model_runtime import bench
+    assert bench.main(["--json", "--configs", "tiny", "--modes", "model", "--frames", "10", "--warmup", "2",
+                       "--precisions", "fp32"]) == 0
+    row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert row["mode"] == "model" and row["frames"] == 10 and row["device"] == "cpu" and row["p50_ms"] > 0
+    import pytest
+    with pytest.raises(SystemExit, match="only the model mode"):
+        bench.main(["--device", "meta", "--configs", "tiny", "--modes", "fwsr"])

@@ -240,3 +240,39 @@ def test_still_windows_sometimes_train_as_standing():
     assert abs(counts["still"] / 400 - STILL_SHARE) < 0.1
     off = SegmentSampler(lib, [0], model.cfg, model.stats, seed=0, still_share=0.0)
     assert off._caption(still, 0) == lib.captions[0]
+
+
+def test_background_workers_draw_batches_and_the_stage_records_its_device(tmp_path, lib):
+    from model_runtime.training.prefetch import batch_stream
+    model = load_model(config="tiny")
+    s = SegmentSampler(lib, list(range(8)), model.cfg, model.stats, seed=0)
+    stream = batch_stream(s, 4, fwsr=True, workers=2, seed=5, device=torch.device("cpu"))
+    a, b = next(stream), next(stream)
+    assert a.hist.shape == (4, 2, 276) and a.frame.shape == (4,) and len(a.text) == 4
+    assert not torch.equal(a.hist, b.hist)            # two workers, two different streams
+    out = tmp_path / "run"
+    train_stage("vae", out, lib, config="tiny", steps=3, batch=8, val_every=3, val_batches=1, progress=False,
+                workers=2)
+    stage = load_model(out / "model.pt").meta["stages"]["vae"]
+    assert stage["steps"] == 3 and stage["device"] == "cpu" and stage["workers"] == 2
+
+
+def test_batch_moves_every_tensor_and_keeps_the_captions(lib):
+    model = load_model(config="tiny")
+    b = SegmentSampler(lib, list(range(8)), model.cfg, model.stats, seed=0).sample(3)
+    moved = b.to(torch.device("cpu"), non_blocking=True).to("cpu")
+    assert moved.text == b.text and torch.equal(moved.fut, b.fut) and moved.partner is None
+
+
+def test_training_device_names_what_is_wrong(monkeypatch):
+    from model_runtime.errors import RemogenError
+    from model_runtime.train import training_device
+    assert training_device("cpu").type == "cpu"
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    assert training_device("auto").type == "cpu"      # no GPU: auto trains on the CPU
+    with pytest.raises(RemogenError, match="sees no CUDA GPU"):
+        training_device("cuda")
+    with pytest.raises(RemogenError, match="not a device"):
+        training_device("gpu0")
+    with pytest.raises(RemogenError, match="cpu or cuda"):
+        training_device("meta")

@@ -117,7 +117,7 @@ def encoder_layer(d: int, heads: int, ff: int, dropout: float) -> TransformerLay
 def sinusoidal_embedding(t: torch.Tensor, dim: int, dtype: torch.dtype = torch.float32) -> torch.Tensor:
     """(B,) step indices -> (B, dim) sinusoidal features."""
     half = dim // 2
-    freqs = torch.exp(-math.log(10000.0) * torch.arange(half, dtype=torch.float32) / half)
+    freqs = torch.exp(-math.log(10000.0) * torch.arange(half, dtype=torch.float32, device=t.device) / half)
     ang = t.float().unsqueeze(-1) * freqs
     return torch.cat((torch.sin(ang), torch.cos(ang)), dim=-1).to(dtype)
 
@@ -148,7 +148,8 @@ class RelativeBiasCrossAttention(nn.Module):
         return self._rel_cache[key]
 
     def _compute_bias(self, t: int, tc: int) -> torch.Tensor:
-        dt = (torch.arange(t).unsqueeze(1) - torch.arange(tc).unsqueeze(0)).float() * self.omega
+        dev = self.bias_proj.weight.device
+        dt = (torch.arange(t, device=dev).unsqueeze(1) - torch.arange(tc, device=dev).unsqueeze(0)).float() * self.omega
         rel = torch.stack((torch.sin(dt), torch.cos(dt)), dim=-1).to(self.bias_proj.weight.dtype)
         return self.bias_proj(rel).permute(2, 0, 1).unsqueeze(0)
 

@@ -20,6 +20,7 @@ from ..model import ReMoGenModel
 from .ema import EMA
 from .recipe import DEFAULT_STEPS, RECIPE, TEXT_DROP
 from .report import StageRun, say, validation_history
+from .prefetch import batch_stream
 from .samples import SegmentSampler
 from .setup import build_samplers, check_library, decoder_sensitivity, fit_stats
 from .stages import STAGES, TEXT_STAGES, StageLoss, freeze_for, trainable_module
@@ -34,8 +35,14 @@ def rank_and_world() -> tuple[int, int]:
 def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "default", steps: int | None = None,
                 batch: int | None = None, lr: float | None = None, seed: int = 0, minutes: float | None = None,
                 ckpt_minutes: float = 3.0, val_every: int = 250, val_batches: int = 4,
-                progress: bool = True, mirror: bool = True) -> StageRun:
-    """Run (or resume) one stage: what was written and how far it got."""
+                progress: bool = True, mirror: bool = True, device: str | torch.device = "cpu",
+                workers: int = 0) -> StageRun:
+    """Run (or resume) one stage: what was written and how far it got.
+
+    device: where the model trains ("cpu", "cuda", "cuda:1"); the checkpoint files hold CPU tensors either way.
+    workers: background processes that draw the batches (training/prefetch.py); 0 draws them in this one.
+    """
+    device = torch.device(device)
     if stage not in STAGES:
         raise RemogenError(f"unknown stage {stage!r}; use one of {', '.join(STAGES)}")
     check_library(lib, resolve_config(config))
@@ -76,8 +83,11 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     if st is None and stage == "fwsr":
         note("measuring the decoder's sensitivity ...")
         decoder_sensitivity(model, lib, seed)
+    tr, va = build_samplers(stage, model, lib, seed, rank, note, mirror=mirror)
+    model.to(device)
     loss_mod = StageLoss(model, stage)
-    ddp = torch.nn.parallel.DistributedDataParallel(loss_mod) if world > 1 else loss_mod
+    ddp = (torch.nn.parallel.DistributedDataParallel(loss_mod, device_ids=[device] if device.type == "cuda" else None)
+           if world > 1 else loss_mod)
     opt = torch.optim.AdamW(params, lr=lr, weight_decay=0.01)
     ema = EMA(params)
     gen = torch.Generator().manual_seed(seed * 7919 + rank)
@@ -91,7 +101,9 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         gen.set_state(st["gen"])
         step, wall = int(st["step"]), float(st["wall"])
         total = int(st.get("total", total)) if steps is None else total
-    tr, va = build_samplers(stage, model, lib, seed, rank, note, mirror=mirror)
+    # the batches of a resumed run continue the stream rather than replay its start
+    batches = batch_stream(tr, batch, fwsr=(stage == "fwsr"), workers=workers, seed=seed * 7919 + rank + step,
+                           device=device)
     bar = None
     if progress and rank == 0:
         from tqdm import tqdm
@@ -112,7 +124,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     try:
         with log_path.open("a") as log:
             while step < total:
-                b = tr.sample(batch, fwsr=(stage == "fwsr"))
+                b = next(batches)
                 loss, parts = ddp(b, gen)
                 opt.zero_grad(set_to_none=True)
                 loss.backward()
@@ -123,7 +135,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                 last = step == total or past_deadline(deadline, world)   # a run cut short still validates
                 row = {"stage": stage, "step": step, "loss": float(loss.detach()), **parts}
                 if va is not None and (step % val_every == 0 or last):
-                    row["val_loss"] = validate(loss_mod, module, ema, va, val_batches, batch, stage)
+                    row["val_loss"] = validate(loss_mod, module, ema, va, val_batches, batch, stage, device)
                 if rank == 0:
                     log.write(json.dumps(row) + "\n")
                     if bar is not None:
@@ -148,10 +160,12 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     if rank == 0:
         ema.swap()
         model.eval()
+        model.cpu()   # the model file holds CPU tensors whatever trained it
         meta = dict(model.meta)
         stages = dict(meta.get("stages", {}))
         stages[stage] = {"steps": step, "wall_s": round(wall + time.time() - t_start, 1), "batch": batch,
                          "lr": lr, "world_size": world, "clips": len(lib.split("train")),
+                         "device": device_name(device), "workers": workers,
                          "val_loss": ([None] + [v for _, v in validation_history(log_path)])[-1]}
         if stage in TEXT_STAGES:
             stages[stage]["text_drop"] = TEXT_DROP
@@ -161,6 +175,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                      "non_commercial": "bandai" in sources or bool(meta.get("non_commercial", False))})
         model.meta = meta
         save_model(model, model_path)
+        model.to(device)
         ema.swap()
     if world > 1:
         # every rank leaves together: the next stage of `all` loads the model.pt rank 0 just wrote, and a rank
@@ -175,7 +190,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
 
 @torch.no_grad()
 def validate(loss_mod: StageLoss, module: torch.nn.Module, ema: EMA, va: SegmentSampler, batches: int,
-             batch: int, stage: str) -> float:
+             batch: int, stage: str, device: torch.device = torch.device("cpu")) -> float:
     """Held-out loss with the EMA weights, in eval mode, with a fixed validation RNG."""
     ema.swap()
     module.eval()
@@ -184,11 +199,16 @@ def validate(loss_mod: StageLoss, module: torch.nn.Module, ema: EMA, va: Segment
         va.gen.manual_seed(4321)
         total = 0.0
         for _ in range(batches):
-            total += float(loss_mod(va.sample(batch, fwsr=(stage == "fwsr")), gen)[0])
+            total += float(loss_mod(va.sample(batch, fwsr=(stage == "fwsr")).to(device), gen)[0])
     finally:
         module.train()
         ema.swap()
     return total / batches
+
+
+def device_name(device: torch.device) -> str:
+    """'cpu', or the GPU's name as the driver reports it (recorded with each stage)."""
+    return torch.cuda.get_device_name(device) if device.type == "cuda" else "cpu"
 
 
 def past_deadline(deadline: float | None, world: int) -> bool:
@@ -198,5 +218,7 @@ def past_deadline(deadline: float | None, world: int) -> bool:
         return False
     done = torch.tensor([float(time.time() >= deadline)])
     if world > 1:
+        if dist.get_backend() == "nccl":   # nccl moves CUDA tensors only
+            done = done.cuda()
         dist.broadcast(done, 0)
     return bool(done.item())

@@ -59,6 +59,15 @@ class Batch:
     recent_partner: torch.Tensor | None = None  # (B, H, 22, 3)
     recent_present: torch.Tensor | None = None  # (B, H)
 
+    def to(self, device: torch.device | str, non_blocking: bool = False) -> "Batch":
+        """The same batch with every tensor on `device` (the captions stay strings)."""
+        return Batch(**{k: v.to(device, non_blocking=non_blocking) if torch.is_tensor(v) else v
+                        for k, v in self.__dict__.items()})
+
+    def pin_memory(self) -> "Batch":
+        """Page-locked copies, so the copy to a GPU can overlap its work (DataLoader calls this)."""
+        return Batch(**{k: v.pin_memory() if torch.is_tensor(v) else v for k, v in self.__dict__.items()})
+
 
 class SegmentSampler:
     """Random segments from a set of clips (optionally with HHI pairs or HSI scenes)."""

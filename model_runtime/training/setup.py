@@ -2,6 +2,7 @@
 samplers (with generated partners and scenes for the interaction stages) and the decoder's sensitivity."""
 from __future__ import annotations
 
+import copy
 from typing import Callable
 
 import torch
@@ -90,12 +91,14 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         lib, train_ids, val_ids, scenes_tr, scenes_va = _derive_then_build(lib, train_ids, val_ids, add_arrivals,
                                                                            build_hsi_scenes, seed)
         note(f"{len(scenes_tr)} training and {len(scenes_va)} held-out HSI scenes")
-    tr = SegmentSampler(lib, train_ids, model.cfg, model.stats, seed=seed * 1000 + rank, pairs=pairs_tr,
+    # the samplers keep a CPU copy of the statistics: the model itself may move to a GPU after this
+    stats = copy.deepcopy(model.stats).cpu()
+    tr = SegmentSampler(lib, train_ids, model.cfg, stats, seed=seed * 1000 + rank, pairs=pairs_tr,
                         scenes=scenes_tr)
     if pairs_va == [] or scenes_va == []:
         note(f"note: no held-out clip fits the {stage} stage's rules: it trains without a held-out loss")
         return tr, None
-    va = SegmentSampler(lib, val_ids, model.cfg, model.stats, seed=seed + 7, pairs=pairs_va, scenes=scenes_va)
+    va = SegmentSampler(lib, val_ids, model.cfg, stats, seed=seed + 7, pairs=pairs_va, scenes=scenes_va)
     return tr, va
 
 

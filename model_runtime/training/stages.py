@@ -21,6 +21,11 @@ TEXT_STAGES = ("prior", "hhi", "hsi")   # the stages that train the denoiser's t
 KL_WEIGHT = 1e-4
 
 
+def _randn(like: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
+    """Standard normal noise shaped like `like`, drawn on the CPU generator (the same draws on any device)."""
+    return torch.randn(like.shape, generator=gen).to(like.device)
+
+
 def trainable_module(model: ReMoGenModel, stage: str) -> nn.Module:
     return {"vae": model.vae, "prior": model.denoiser, "hhi": model.mims["hhi"], "hsi": model.mims["hsi"],
             "fwsr": model.fwsr}[stage]
@@ -52,15 +57,16 @@ class StageLoss(nn.Module):
     def _vae(self, b: Batch, gen: torch.Generator):
         vae = self.model.vae
         mu, logvar = vae.encode(b.hist, b.fut)
-        z = mu + torch.randn(mu.shape, generator=gen) * torch.exp(0.5 * logvar)
+        z = mu + _randn(mu, gen) * torch.exp(0.5 * logvar)
         rec = nn.functional.smooth_l1_loss(vae.decode(b.hist, z), b.fut)
         kl = 0.5 * (mu.pow(2) + logvar.exp() - 1 - logvar).mean()
         return rec + KL_WEIGHT * kl, {"rec": float(rec.detach()), "kl": float(kl.detach())}
 
     def text_tokens(self, b: Batch, gen: torch.Generator) -> torch.Tensor:
         m = self.model
-        emb = m.text_encoder.encode(b.text)
-        drop = torch.rand(len(b.text), generator=gen) < TEXT_DROP
+        dev = m.denoiser.null_text.device
+        emb = m.text_encoder.encode(b.text).to(dev)
+        drop = (torch.rand(len(b.text), generator=gen) < TEXT_DROP).to(dev)
         return m.denoiser.text_tokens(emb, drop)
 
     def contexts(self, b: Batch) -> tuple[Contexts, dict[str, float]]:
@@ -75,8 +81,8 @@ class StageLoss(nn.Module):
         m = self.model
         with torch.no_grad():
             z0, _ = m.vae.encode(b.hist, b.fut)
-        t = torch.randint(0, m.cfg.diffusion_steps, (z0.shape[0],), generator=gen)
-        z_t = m.schedule.q_sample(z0, t, torch.randn(z0.shape, generator=gen))
+        t = torch.randint(0, m.cfg.diffusion_steps, (z0.shape[0],), generator=gen).to(z0.device)
+        z_t = m.schedule.q_sample(z0, t, _randn(z0, gen))
         ctx, alpha = self.contexts(b)
         x0 = m.denoiser(z_t, t, b.hist, self.text_tokens(b, gen), m.injector(ctx, alpha))
         latent = nn.functional.mse_loss(x0, z0)
@@ -86,17 +92,17 @@ class StageLoss(nn.Module):
     def _fwsr(self, b: Batch, gen: torch.Generator):
         m = self.model
         with torch.no_grad():  # the segment latent as the frozen generator makes it online
-            text = m.text_encoder.encode(b.text)
+            text = m.text_encoder.encode(b.text).to(b.hist.device)
             ctx = m.encode_contexts(b.partner, b.present, None, None, {"hhi": 1.0}) \
                 if b.partner is not None else Contexts({})
             z0 = m.sample_latent(b.hist, text, ctx, {"hhi": 1.0}, 5.0, gen)
         frame = b.frame
         z = m.fwsr(z0, b.recent, b.recent_partner, b.recent_present, frame)
         dec = m.vae.decode(b.hist, z)
-        idx = torch.arange(dec.shape[0])
+        idx = torch.arange(dec.shape[0], device=dec.device)
         target = nn.functional.smooth_l1_loss(dec[idx, frame], b.fut[idx, frame])
         # the later frames of the refined decode matter too (they seed the next refinements)
-        later = (torch.arange(dec.shape[1]).unsqueeze(0) >= frame.unsqueeze(1)).float().unsqueeze(-1)
+        later = (torch.arange(dec.shape[1], device=dec.device).unsqueeze(0) >= frame.unsqueeze(1)).float().unsqueeze(-1)
         rest = (nn.functional.smooth_l1_loss(dec, b.fut, reduction="none") * later).sum() / \
             (later.sum() * dec.shape[-1])
         return target + 0.5 * rest, {"frame": float(target.detach()), "later": float(rest.detach())}
