@@ -276,3 +276,20 @@ def test_training_device_names_what_is_wrong(monkeypatch):
         training_device("gpu0")
     with pytest.raises(RemogenError, match="cpu or cuda"):
         training_device("meta")
+
+
+def test_fwsr_rows_read_the_generators_own_frames_in_the_real_frames_place(lib, monkeypatch):
+    import model_runtime.training.stages as stages
+    model = load_model(config="tiny")
+    b = SegmentSampler(lib, list(range(8)), model.cfg, model.stats, seed=0).sample(6, fwsr=True)
+
+    class Decoded:     # a decoder that returns the real future: the windows must then be the real recent frames
+        class vae:
+            @staticmethod
+            def decode(hist, z):
+                return b.fut
+    monkeypatch.setattr(stages, "FWSR_OWN_SHARE", 1.0)
+    own = stages.own_recent_frames(Decoded, b, torch.zeros(6, 2, 4), torch.Generator().manual_seed(0))
+    assert torch.allclose(own, b.recent, atol=1e-5)
+    monkeypatch.setattr(stages, "FWSR_OWN_SHARE", 0.0)
+    assert stages.own_recent_frames(model, b, torch.zeros(6, 2, 4), torch.Generator()) is b.recent

@@ -13,7 +13,7 @@ import torch
 from torch import nn
 
 from ..model import Contexts, ReMoGenModel
-from .recipe import TEXT_DROP
+from .recipe import FWSR_OWN_SHARE, TEXT_DROP
 from .samples import Batch
 
 STAGES = ("vae", "prior", "hhi", "hsi", "fwsr")
@@ -24,6 +24,21 @@ KL_WEIGHT = 1e-4
 def _randn(like: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
     """Standard normal noise shaped like `like`, drawn on the CPU generator (the same draws on any device)."""
     return torch.randn(like.shape, generator=gen).to(like.device)
+
+
+def own_recent_frames(model: ReMoGenModel, b: Batch, z0: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
+    """The ego's latest H frames before frame f as FWSR training sees them: real ones, or for FWSR_OWN_SHARE of
+    the rows the generator's own decode of the segment (after the real history), which is what the refiner reads
+    at run time, where the ego's recent frames are its own output. Trained on real recent frames only, the refiner
+    learned to continue them, and at run time it amplified its own drift (measured on the val split)."""
+    own = (torch.rand(z0.shape[0], generator=gen) < FWSR_OWN_SHARE).to(z0.device)
+    if not bool(own.any()):
+        return b.recent
+    h = b.hist.shape[1]
+    seq = torch.cat((b.hist, model.vae.decode(b.hist, z0)), 1)        # (B, H + F, D): history, then the segment
+    windows = seq.unfold(1, h, 1).permute(0, 1, 3, 2)                  # (B, F + 1, H, D): window k = frames k..k+H-1
+    mine = windows[torch.arange(z0.shape[0], device=z0.device), b.frame]
+    return torch.where(own.view(-1, 1, 1), mine, b.recent)
 
 
 def trainable_module(model: ReMoGenModel, stage: str) -> nn.Module:
@@ -96,8 +111,9 @@ class StageLoss(nn.Module):
             ctx = m.encode_contexts(b.partner, b.present, None, None, {"hhi": 1.0}) \
                 if b.partner is not None else Contexts({})
             z0 = m.sample_latent(b.hist, text, ctx, {"hhi": 1.0}, 5.0, gen)
+            recent = own_recent_frames(m, b, z0, gen)
         frame = b.frame
-        z = m.fwsr(z0, b.recent, b.recent_partner, b.recent_present, frame)
+        z = m.fwsr(z0, recent, b.recent_partner, b.recent_present, frame)
         dec = m.vae.decode(b.hist, z)
         idx = torch.arange(dec.shape[0], device=dec.device)
         target = nn.functional.smooth_l1_loss(dec[idx, frame], b.fut[idx, frame])
