@@ -30,6 +30,8 @@ import torch
 
 from .checkpoint import load_model
 from .cli_help import HelpFormatter
+from .devices import device_name, resolve_device
+from .errors import RemogenError
 from .fixtures import BOX_GOAL, approaching_partner, box_scene
 from .ego import EgoSettings
 from .group import ReactionGroup
@@ -151,12 +153,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--precisions", default="fp32,bf16:paper,int8:paper",
                     help="precisions to run; 'bf16:paper' = bf16 for the paper config only")
     args = ap.parse_args(argv)
-    device = torch.device("cuda" if args.device == "auto" and torch.cuda.is_available() else
-                          "cpu" if args.device == "auto" else args.device)
-    if device.type == "cuda" and not torch.cuda.is_available():
-        raise SystemExit("bench: --device cuda, but this PyTorch sees no CUDA GPU; use --device cpu")
-    if device.type != "cpu" and set(args.modes.split(",")) != {"model"}:
-        raise SystemExit(f"bench: only the model mode runs on {device}; pass --modes model")
+    if args.device not in ("cpu", "auto") and set(args.modes.split(",")) != {"model"}:
+        raise SystemExit(f"bench: only the model mode runs on {args.device}; pass --modes model")
+    try:
+        device = resolve_device(args.device)   # auto: the model mode on a GPU, the session modes on the CPU
+    except RemogenError as exc:
+        raise SystemExit(f"bench: {exc}") from None
     scene = box_scene()
     rows = []
     for cfg in args.configs.split(","):
@@ -169,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
             model = load_model(args.model, precision=prec) if args.model else load_model(config=cfg, precision=prec)
             for mode in args.modes.split(","):
                 common = {"threads": threads, "precision": prec, "scene": scene is not None,
-                          "device": torch.cuda.get_device_name(device) if device.type == "cuda" else "cpu"}
+                          "device": device_name(device) if mode == "model" else "cpu"}
                 if mode.startswith("group"):
                     egos = _group_size(mode)
                     together, apart = run_group_case(model, egos, args.frames, args.warmup, scene)

@@ -321,7 +321,7 @@ class DiffusionJob:
         self.gen = generator
         cfg = model.cfg
         shape = (hist.shape[0], cfg.latent_tokens, cfg.latent_dim)
-        self.z = _noise(shape, generator).to(hist.device)   # drawn on the CPU: the same noise on any device
+        self.z = noise(shape, generator, hist.device)
         self.t = cfg.diffusion_steps - 1
         self._clean: torch.Tensor | None = None     # the denoised latent while final steers remain
         self._steers_left = self.final_steers
@@ -359,15 +359,19 @@ class DiffusionJob:
                 if self.t == 0:
                     self._clean = x0
                 else:
-                    noise = _noise(self.z.shape, self.gen).to(self.z.device)
-                    self.z = self.model.schedule.step(self.z, self.t, x0, noise)
+                    eps = noise(self.z.shape, self.gen, self.z.device)
+                    self.z = self.model.schedule.step(self.z, self.t, x0, eps)
                     self.t -= 1
             if self._clean is not None and self._steers_left == 0:
                 self.result = self._clean
 
 
-def _noise(shape: tuple[int, ...], generator: torch.Generator | list[torch.Generator]) -> torch.Tensor:
-    """Standard normal noise; with one generator per row, each row drawn from its own."""
+def noise(shape: tuple[int, ...], generator: torch.Generator | list[torch.Generator],
+          device: torch.device | None = None) -> torch.Tensor:
+    """Standard normal noise on `device`; with one generator per row, each row drawn from its own. Drawn from CPU
+    generators whatever the device, so a seed gives the same draws on a GPU as on the CPU."""
     if isinstance(generator, torch.Generator):
-        return torch.randn(shape, generator=generator)
-    return torch.cat([torch.randn((1,) + tuple(shape[1:]), generator=g) for g in generator])
+        out = torch.randn(shape, generator=generator)
+    else:
+        out = torch.cat([torch.randn((1,) + tuple(shape[1:]), generator=g) for g in generator])
+    return out if device is None else out.to(device)

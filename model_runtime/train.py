@@ -37,6 +37,7 @@ import torch.distributed as dist
 
 from .cli_help import HelpFormatter
 from .data.library import ClipLibrary
+from .devices import resolve_device as training_device
 from .errors import RemogenError
 from .training.ema import EMA
 from .training.loop import past_deadline, rank_and_world, train_stage
@@ -125,27 +126,6 @@ def main(argv: list[str] | None = None) -> int:
     if rank == 0:
         print(summary(runs, STAGES, argv, world), file=sys.stderr)
     return 0
-
-
-def training_device(name: str) -> torch.device:
-    """The device a run trains on. Under torchrun with CUDA each rank takes the GPU LOCAL_RANK."""
-    if name == "auto":
-        name = "cuda" if torch.cuda.is_available() else "cpu"
-    try:
-        device = torch.device(name)
-    except RuntimeError:
-        raise RemogenError(f"--device {name!r} is not a device; use auto, cpu, cuda or cuda:N") from None
-    if device.type not in ("cpu", "cuda"):
-        raise RemogenError(f"--device {name!r}: training runs on cpu or cuda; use auto, cpu, cuda or cuda:N")
-    if device.type == "cuda":
-        if not torch.cuda.is_available():
-            raise RemogenError(f"--device {name}: this PyTorch sees no CUDA GPU; use --device cpu (or auto)")
-        if device.index is None:
-            device = torch.device("cuda", int(os.environ.get("LOCAL_RANK", "0")))
-        if device.index >= torch.cuda.device_count():
-            raise RemogenError(f"--device {device}: only {torch.cuda.device_count()} GPU(s) are visible")
-        torch.cuda.set_device(device)
-    return device
 
 
 def _load_library(args: argparse.Namespace, progress: bool) -> ClipLibrary:

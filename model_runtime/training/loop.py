@@ -15,6 +15,7 @@ import torch.distributed as dist
 from ..checkpoint import load_model, save_model
 from ..config import ModelConfig, resolve_config
 from ..data.library import ClipLibrary
+from ..devices import device_name
 from ..errors import RemogenError
 from ..model import ReMoGenModel
 from .ema import EMA
@@ -204,11 +205,6 @@ def validate(loss_mod: StageLoss, module: torch.nn.Module, ema: EMA, va: Segment
         module.train()
         ema.swap()
     return total / batches
-
-
-def device_name(device: torch.device) -> str:
-    """'cpu', or the GPU's name as the driver reports it (recorded with each stage)."""
-    return torch.cuda.get_device_name(device) if device.type == "cuda" else "cpu"
 
 
 def past_deadline(deadline: float | None, world: int) -> bool:

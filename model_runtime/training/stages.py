@@ -12,18 +12,13 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from ..model import Contexts, ReMoGenModel
+from ..model import Contexts, ReMoGenModel, noise
 from .recipe import FWSR_OWN_SHARE, TEXT_DROP
 from .samples import Batch
 
 STAGES = ("vae", "prior", "hhi", "hsi", "fwsr")
 TEXT_STAGES = ("prior", "hhi", "hsi")   # the stages that train the denoiser's text input (with caption dropout)
 KL_WEIGHT = 1e-4
-
-
-def _randn(like: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
-    """Standard normal noise shaped like `like`, drawn on the CPU generator (the same draws on any device)."""
-    return torch.randn(like.shape, generator=gen).to(like.device)
 
 
 def own_recent_frames(model: ReMoGenModel, b: Batch, z0: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
@@ -34,10 +29,9 @@ def own_recent_frames(model: ReMoGenModel, b: Batch, z0: torch.Tensor, gen: torc
     own = (torch.rand(z0.shape[0], generator=gen) < FWSR_OWN_SHARE).to(z0.device)
     if not bool(own.any()):
         return b.recent
-    h = b.hist.shape[1]
     seq = torch.cat((b.hist, model.vae.decode(b.hist, z0)), 1)        # (B, H + F, D): history, then the segment
-    windows = seq.unfold(1, h, 1).permute(0, 1, 3, 2)                  # (B, F + 1, H, D): window k = frames k..k+H-1
-    mine = windows[torch.arange(z0.shape[0], device=z0.device), b.frame]
+    frames = b.frame.unsqueeze(1) + torch.arange(b.hist.shape[1], device=z0.device)   # frames f .. f+H-1 of seq
+    mine = seq[torch.arange(z0.shape[0], device=z0.device).unsqueeze(1), frames]
     return torch.where(own.view(-1, 1, 1), mine, b.recent)
 
 
@@ -72,7 +66,7 @@ class StageLoss(nn.Module):
     def _vae(self, b: Batch, gen: torch.Generator):
         vae = self.model.vae
         mu, logvar = vae.encode(b.hist, b.fut)
-        z = mu + _randn(mu, gen) * torch.exp(0.5 * logvar)
+        z = mu + noise(mu.shape, gen, mu.device) * torch.exp(0.5 * logvar)
         rec = nn.functional.smooth_l1_loss(vae.decode(b.hist, z), b.fut)
         kl = 0.5 * (mu.pow(2) + logvar.exp() - 1 - logvar).mean()
         return rec + KL_WEIGHT * kl, {"rec": float(rec.detach()), "kl": float(kl.detach())}
@@ -97,7 +91,7 @@ class StageLoss(nn.Module):
         with torch.no_grad():
             z0, _ = m.vae.encode(b.hist, b.fut)
         t = torch.randint(0, m.cfg.diffusion_steps, (z0.shape[0],), generator=gen).to(z0.device)
-        z_t = m.schedule.q_sample(z0, t, _randn(z0, gen))
+        z_t = m.schedule.q_sample(z0, t, noise(z0.shape, gen, z0.device))
         ctx, alpha = self.contexts(b)
         x0 = m.denoiser(z_t, t, b.hist, self.text_tokens(b, gen), m.injector(ctx, alpha))
         latent = nn.functional.mse_loss(x0, z0)
