@@ -1,4 +1,4 @@
-"""The behaviour suite's command line: what --prior-only and --no-control roll out."""
+"""The behaviour suite's command line: what --prior-only, --no-control, --no-fwsr and --no-cleanup roll out."""
 import json
 
 from model_runtime.behaviour.__main__ import main
@@ -27,3 +27,15 @@ def test_no_control_is_recorded_and_runs_both_alphas(capsys):
     report = _report(capsys, "--no-control")
     assert report["control"] is False and "prior_only" not in report
     assert list(report["families"]["walk_forward"]) == ["alpha=0", "alpha=1"]
+
+
+def test_no_fwsr_and_no_cleanup_roll_out_without_them(capsys):
+    report = _report(capsys, "--no-fwsr", "--no-cleanup")
+    assert report["fwsr"] is False and report["cleanup"] is False and report["control"] is True
+    from model_runtime import load_model
+    from model_runtime.behaviour import metrics as M
+    from model_runtime.behaviour.scenarios import draw_episodes
+    from model_runtime.behaviour.suite import roll_out
+    ego = roll_out(load_model(), draw_episodes("walk_forward", "val", 1)[0], 1.0, fwsr=False, cleanup=False)
+    assert abs(report["families"]["walk_forward"]["alpha=1"]["abs_net_yaw_mean_deg"]
+               - abs(M.net_yaw_deg(ego, 20.0))) < 1e-3

@@ -60,6 +60,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     ap.add_argument("--no-control", action="store_true",
                     help="roll out without test-time control: what the model has learned by itself")
+    ap.add_argument("--no-fwsr", action="store_true", help="roll out without Frame-wise Segment Refinement")
+    ap.add_argument("--no-cleanup", action="store_true", help="roll out without the planted-foot cleanup")
     ap.add_argument("--prior-only", action="store_true",
                     help="roll out the prior alone: alpha 0, no FWSR, planted-foot cleanup or control")
     ap.add_argument("--json", action="store_true", help="print the report as one JSON object")
@@ -96,12 +98,13 @@ def main(argv: list[str] | None = None) -> int:
     except RemogenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    # the runtime's parts each run can switch off; --prior-only switches off all of them (and the alphas)
+    switches = {part: not (getattr(args, f"no_{part}") or args.prior_only) for part in ("fwsr", "cleanup", "control")}
     report = run_suite(model, args.split, families=args.families, episodes=args.episodes,
                        guidance=args.guidance, progress=lambda m: print(m, file=sys.stderr, flush=True),
                        library=library, diversity_seeds=args.diversity_seeds if args.diversity else 0,
-                       **({"alphas": (0.0,), "fwsr": False, "cleanup": False, "control": False} if args.prior_only
-                          else {"control": not args.no_control}))
-    report["control"] = not (args.no_control or args.prior_only)
+                       **({"alphas": (0.0,)} if args.prior_only else {}), **switches)
+    report.update(switches)
     if args.prior_only:
         report["prior_only"] = True
     if args.library:
