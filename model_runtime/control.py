@@ -31,6 +31,7 @@ import torch
 from .distance_field import DistanceField
 from .features import ROOT_T, feature_joints
 from .joints import JOINT_INDEX, LEFT_HIP, RIGHT_HIP, SOLE_BELOW_FOOT_JOINT
+from .navigation import NavigationField
 
 FPS = 10.0
 PASS_TIE = 0.05          # m: this close to the line of the relative motion, neither side is taken yet ...
@@ -120,13 +121,17 @@ def scene_cost(world_joints: torch.Tensor, field: DistanceField, margin: float) 
 
 
 def goal_cost(pelvis: torch.Tensor, start_xy: torch.Tensor, goal_xy: torch.Tensor,
-              cfg: ControlConfig) -> torch.Tensor:
+              cfg: ControlConfig, walk=None) -> torch.Tensor:
     """Progress toward a floor goal at `pace`, then standing on it. pelvis (..., T, 3); start_xy (..., 2) the
-    pelvis before; goal_xy (..., 2)."""
+    pelvis before; goal_xy (..., 2). `walk`, when given, maps floor points (..., 2) to the walking distance to
+    the goal around obstacles (navigation.py): progress is then measured along the way around them."""
     frames = pelvis.shape[-2]
     start = torch.linalg.vector_norm(goal_xy - start_xy, dim=-1)
-    end = _smooth_norm(pelvis[..., -1, :2] - goal_xy)
-    wanted = torch.clamp(start - cfg.pace * frames / FPS, min=0.0)
+    if walk is None:
+        far, end = start, _smooth_norm(pelvis[..., -1, :2] - goal_xy)
+    else:
+        far, end = walk(start_xy).detach(), walk(pelvis[..., -1, :2])
+    wanted = torch.clamp(far - cfg.pace * frames / FPS, min=0.0)
     cost = cfg.goal_weight * torch.relu(end - wanted)
 
     def rest() -> torch.Tensor:
@@ -251,8 +256,20 @@ class ControlTargets:
     field: DistanceField | None = None
     to_world: tuple[torch.Tensor, torch.Tensor] | None = None   # (rot, trans) canonical -> world
     goal_xy: torch.Tensor | None = None
+    nav: NavigationField | None = None         # walking distance to the goal around the scene (world)
+    face_xy: torch.Tensor | None = None        # (2,) where to face on the way to the goal (default: the goal)
     alpha_hhi: float = 0.0
     alpha_hsi: float = 0.0
+
+
+def _walking_distance(targets: list[ControlTargets]):
+    """Canonical floor points (R, 2) -> (R,) walking distance to each row's goal, through its own field."""
+    frames = [(t.to_world[0][:2, :2], t.to_world[1][:2], t.nav) for t in targets]
+
+    def walk(xy: torch.Tensor) -> torch.Tensor:
+        return torch.stack([nav(xy[k] @ rot.T + trans) for k, (rot, trans, nav) in enumerate(frames)])
+
+    return walk
 
 
 class _Rows:
@@ -306,7 +323,10 @@ class SegmentCosts:
             # goals among the scene rows, and which of them are far enough to be faced
             self.goal = _Rows([t.goal_xy is not None for t in on])
             if self.goal.any:
-                self.goal_xy = torch.stack([on[i].goal_xy for i in self.goal.rows])
+                goals = [on[i] for i in self.goal.rows]
+                self.goal_xy = torch.stack([t.goal_xy for t in goals])
+                self.face_xy = torch.stack([t.face_xy if t.face_xy is not None else t.goal_xy for t in goals])
+                self.walk = _walking_distance(goals) if all(t.nav is not None for t in goals) else None
                 start = self.goal.of(s.of(self.before_xy))
                 self.far = (torch.linalg.vector_norm(self.goal_xy - start, dim=-1) > cfg.goal_face_distance).tolist()
 
@@ -343,8 +363,9 @@ class SegmentCosts:
             g = self.goal
             if g.any:
                 at = g.of(mine)
-                goal = goal_cost(g.of(s.of(feat))[..., ROOT_T], g.of(s.of(self.before_xy)), self.goal_xy, cfg)
-                goal = _plus_where(goal, self.far, lambda: cfg.goal_face_weight * facing_cost(at, self.goal_xy))
+                goal = goal_cost(g.of(s.of(feat))[..., ROOT_T], g.of(s.of(self.before_xy)), self.goal_xy, cfg,
+                                 self.walk)
+                goal = _plus_where(goal, self.far, lambda: cfg.goal_face_weight * facing_cost(at, self.face_xy))
                 scene = g.add(scene, goal)
             cost = s.add(cost, self.alpha_hsi * scene)
         return cost

@@ -21,6 +21,7 @@ from .errors import MAX_COORD, InputError
 from .features import (ROOT_T, ROT6D, canonical_frame, feature_joints, features_from_pose, to_canonical,
                        world_points_to_canonical)
 from .footlock import FootLock
+from .navigation import NAV_CELL, NavigationField
 from .quat import matrix_to_quat_np
 from .skeleton import (NUM_JOINTS, forward_kinematics_np, quat_to_matrix, rot6d_to_matrix_np,
                        standing_pelvis_height, yaw_matrix)
@@ -92,6 +93,7 @@ def as_transform(rot: torch.Tensor, trans: torch.Tensor) -> np.ndarray:
     return m
 
 
+NAV_LOOK_AHEAD = 1.5   # m: on the way around obstacles, face the point this far along the way (not the goal)
 PASS_FRAMES = 4    # the latest frames whose motion tells whether, and how, the ego is passing someone
 
 
@@ -174,6 +176,7 @@ class Ego:
         self.cue_id: int = -1                # which one: -1 the partner, else the index of another ego
         self.passing: tuple[int, np.ndarray] | None = None   # (cue_id, world direction) while passing it
         self.goal: np.ndarray | None = None
+        self._nav: tuple | None = None       # (grid, goal xy, NavigationField) of the latest goal, see navigation()
         self.gen = torch.Generator().manual_seed(self._seed)
         self.seg: dict | None = None         # this ego's part of the running segment
         latest = feature_joints(hist_world[-1]).numpy().astype(np.float32)
@@ -265,12 +268,21 @@ class Ego:
             return None
         return world_points_to_canonical(torch.as_tensor(self.goal).view(1, 1, 3), rot, trans)[:, 0]
 
+    def navigation(self, scene: Any) -> NavigationField:
+        """The walking-distance field to its goal around `scene`, rebuilt only when the grid changes or the goal
+        moves by more than half a floor cell (a build takes about 10 ms; dragging a goal rebuilds it)."""
+        goal = np.asarray(self.goal, np.float64)[:2]
+        cached = self._nav
+        if cached is None or cached[0] is not scene or np.hypot(*(cached[1] - goal)) > NAV_CELL / 2:
+            cached = self._nav = (scene, goal, NavigationField(scene, goal))
+        return cached[2]
+
     def control_targets(self, rot: torch.Tensor, trans: torch.Tensor, lead: int,
                         field: Callable[[], DistanceField] | None, cc: ControlConfig,
-                        alpha: dict[str, float] | None = None) -> ControlTargets:
+                        alpha: dict[str, float] | None = None, scene: Any = None) -> ControlTargets:
         """Test-time control of one job: its costs' targets in the job's canonical frame. `field` gives the
-        scene's distance field (built on first use), None without a scene; `alpha` the alphas to steer with
-        (default: the current ones)."""
+        scene's distance field (built on first use), None without a scene; `scene` the grid itself, for the
+        walking distance to the goal around it; `alpha` the alphas to steer with (default: the current ones)."""
         alpha = self._alpha if alpha is None else alpha
         targets = ControlTargets(alpha_hhi=alpha["hhi"], alpha_hsi=alpha["hsi"])
         if targets.alpha_hhi > 0.0:
@@ -285,4 +297,11 @@ class Ego:
                 targets.field, targets.to_world = field(), (rot, trans)
             if self.goal is not None:
                 targets.goal_xy = world_points_to_canonical(torch.as_tensor(self.goal).view(1, 3), rot, trans)[0, :2]
+                nav = self.navigation(scene) if scene is not None and field is not None else None
+                if nav is not None and nav.blocks:
+                    targets.nav = nav
+                    start = trans[:2].numpy()    # the canonical origin: the ego at the segment's start
+                    ahead = targets.nav.waypoint(start, NAV_LOOK_AHEAD)
+                    targets.face_xy = world_points_to_canonical(
+                        torch.tensor([ahead[0], ahead[1], 0.0], dtype=torch.float32).view(1, 3), rot, trans)[0, :2]
         return targets

@@ -209,7 +209,7 @@ class ReactionGroup:
         for i, e in enumerate(self.egos):
             alpha = e.seg["alpha"]
             if alpha["hhi"] > 0.0 and e.pass_away(cc) is not None and e.passing_reaches(cc, 0, last):
-                t = e.control_targets(e.seg["rot"], e.seg["trans"], -f, field, cc, alpha)
+                t = e.control_targets(e.seg["rot"], e.seg["trans"], -f, field, cc, alpha, self._scene)
                 if t.pass_away is not None:
                     rows.append(i)
                     targets.append(t)
@@ -298,7 +298,7 @@ class ReactionGroup:
         cc = self._control_config
         field = self._distance_field if self._scene is not None else None
         alphas = alphas if alphas is not None else [None] * len(self.egos)
-        targets = [e.control_targets(rot, trans, lead, field, cc, a)
+        targets = [e.control_targets(rot, trans, lead, field, cc, a, self._scene)
                    for e, (rot, trans, _), a in zip(self.egos, canon, alphas)]
         return LatentSteer(self.model, hist_n, SegmentCosts(self.model.stats, hist_n, targets, cc, keep=keep), cc,
                            step_size=step_size)

@@ -45,6 +45,28 @@ def _print_tables(path: str) -> int:
     return 0
 
 
+def _control_config(settings: list[str]):
+    """A ControlConfig with NAME=VALUE overrides (None without any): ValueError naming a bad one."""
+    if not settings:
+        return None
+    from ..control import ControlConfig
+    from ..errors import InputError
+    fields = ControlConfig.__dataclass_fields__
+    values = {}
+    for kv in settings:
+        name, sep, value = kv.partition("=")
+        if not sep or name not in fields:
+            raise ValueError(f"--control-set {kv!r}: give NAME=VALUE with NAME one of {', '.join(fields)}")
+        try:
+            values[name] = int(value) if isinstance(fields[name].default, int) else float(value)
+        except ValueError:
+            raise ValueError(f"--control-set {kv!r}: {value!r} is not a number") from None
+    try:
+        return ControlConfig(**values)
+    except InputError as exc:
+        raise ValueError(str(exc)) from None
+
+
 def main(argv: list[str] | None = None) -> int:
     from ..cli_help import HelpFormatter
     from .diversity import DIVERSITY_PROMPTS, DIVERSITY_SEEDS
@@ -64,6 +86,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-cleanup", action="store_true", help="roll out without the planted-foot cleanup")
     ap.add_argument("--prior-only", action="store_true",
                     help="roll out the prior alone: alpha 0, no FWSR, planted-foot cleanup or control")
+    ap.add_argument("--control-set", action="append", default=[], metavar="NAME=VALUE",
+                    help="override one test-time control setting (a field of model_runtime.ControlConfig), e.g. "
+                         "scene_weight=80; repeatable. For choosing settings on the val split")
+    ap.add_argument("--alphas", type=float, nargs="+", default=None,
+                    help="interaction alphas to roll out each family at (default: 0 and 1)")
     ap.add_argument("--json", action="store_true", help="print the report as one JSON object")
     ap.add_argument("--plots", default=None, help="folder for top-view paths and stick-figure strips")
     ap.add_argument("--library", default=None,
@@ -83,6 +110,10 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--episodes must be at least 1")
     if args.diversity and args.diversity_seeds < 2:
         ap.error("--diversity-seeds must be at least 2")
+    try:
+        control_config = _control_config(args.control_set)
+    except ValueError as exc:
+        ap.error(str(exc))
     import torch
 
     from ..checkpoint import load_model
@@ -100,11 +131,14 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     # the runtime's parts each run can switch off; --prior-only switches off all of them (and the alphas)
     switches = {part: not (getattr(args, f"no_{part}") or args.prior_only) for part in ("fwsr", "cleanup", "control")}
+    alphas = (0.0,) if args.prior_only else args.alphas
     report = run_suite(model, args.split, families=args.families, episodes=args.episodes,
                        guidance=args.guidance, progress=lambda m: print(m, file=sys.stderr, flush=True),
                        library=library, diversity_seeds=args.diversity_seeds if args.diversity else 0,
-                       **({"alphas": (0.0,)} if args.prior_only else {}), **switches)
+                       **({"alphas": tuple(alphas)} if alphas else {}), control_config=control_config, **switches)
     report.update(switches)
+    if args.control_set:
+        report["control_config"] = dict(kv.split("=", 1) for kv in args.control_set)
     if args.prior_only:
         report["prior_only"] = True
     if args.library:
