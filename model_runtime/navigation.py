@@ -102,6 +102,7 @@ class NavigationField:
         off = np.round((grid_origin - lo) / cell).astype(int)
         cost[off[0]:off[0] + blocked.shape[0], off[1]:off[1] + blocked.shape[1]][blocked] = blocked_cost
         u = solve_eikonal(cost, tuple((goal - lo) / cell), cell)
+        self._u = u
         self._map = torch.from_numpy(u.astype(np.float32))[None, None]      # (1, 1, nx, ny)
         self._shape = torch.tensor(n, dtype=torch.float32)
         self._lo = torch.tensor(lo + 0.5 * cell, dtype=torch.float32)             # first cell centre
@@ -117,16 +118,29 @@ class NavigationField:
                                                align_corners=True)
         return vals.reshape(xy.shape[:-1]) + beyond
 
+    def _sample(self, xy: np.ndarray) -> float:
+        """The field at a world floor point, in NumPy (the same bilinear sampling as __call__)."""
+        c = (np.asarray(xy, np.float64) - self.origin) / self.cell - 0.5          # cell-centre index units
+        n = np.asarray(self._u.shape)
+        inside = np.clip(c, 0.0, n - 1.0)
+        beyond = float(np.hypot(*(c - inside))) * self.cell
+        i0 = np.minimum(np.floor(inside).astype(int), n - 2).clip(0)
+        t = inside - i0
+        u = self._u
+        i1 = np.minimum(i0 + 1, n - 1)
+        v = ((1 - t[0]) * (1 - t[1]) * u[i0[0], i0[1]] + t[0] * (1 - t[1]) * u[i1[0], i0[1]]
+             + (1 - t[0]) * t[1] * u[i0[0], i1[1]] + t[0] * t[1] * u[i1[0], i1[1]])
+        return float(v) + beyond
+
     def heading(self, xy: np.ndarray) -> np.ndarray:
         """The unit floor direction (2,) of steepest walking-distance descent at world point xy (2,)."""
-        p = torch.tensor(np.asarray(xy, np.float32)[:2])
+        p = np.asarray(xy, np.float64)[:2]
         e = self.cell * 0.5
-        steps = torch.tensor([[e, 0.0], [-e, 0.0], [0.0, e], [0.0, -e]])
-        v = self(p + steps).numpy()
-        g = np.array([v[0] - v[1], v[2] - v[3]], np.float64)
+        g = np.array([self._sample(p + (e, 0.0)) - self._sample(p - (e, 0.0)),
+                      self._sample(p + (0.0, e)) - self._sample(p - (0.0, e))])
         n = float(np.hypot(g[0], g[1]))
         if n < 1e-9:
-            d = self.goal - np.asarray(xy, np.float64)[:2]
+            d = self.goal - p
             n = float(np.hypot(d[0], d[1]))
             return d / n if n > 1e-9 else np.zeros(2)
         return -g / n

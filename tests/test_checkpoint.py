@@ -236,3 +236,22 @@ def test_a_fully_trained_or_unrecorded_file_loads_silently(tmp_path, tiny_model)
         warnings.simplefilter("error")
         load_model(done)
         load_model(old)
+
+
+def test_damping_cli_writes_a_new_file_with_only_the_fwsr_beta_changed(tmp_path, tiny_model, capsys):
+    from model_runtime.damping import main
+    src = save_model(tiny_model, tmp_path / "in.pt")
+    out = tmp_path / "out.pt"
+    assert main([str(src), "--fwsr-beta", "4", "--out", str(out)]) == 0
+    damped = load_model(out)
+    assert damped.cfg.fwsr_beta == 4.0 and damped.meta["fwsr_beta_from"] == tiny_model.cfg.fwsr_beta
+    original = load_model(src)
+    assert original.cfg.fwsr_beta == tiny_model.cfg.fwsr_beta          # the input is unchanged
+    assert all(torch.equal(a, b) for a, b in zip(damped.state_dict().values(), original.state_dict().values()))
+    # an existing output or a bad value: one line, nothing written
+    assert main([str(src), "--fwsr-beta", "2", "--out", str(out)]) == 2
+    assert load_model(out).cfg.fwsr_beta == 4.0
+    assert main([str(src), "--fwsr-beta", "-1", "--out", str(tmp_path / "bad.pt")]) == 2
+    assert not (tmp_path / "bad.pt").exists()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and all(line.startswith("error: ") for line in err)

@@ -81,3 +81,12 @@ def test_waypoint_walks_along_the_field_and_stops_at_the_goal():
     w = nav.waypoint(np.array([0.0, 0.0]), 1.5)
     assert 1.2 < float(np.hypot(*w)) < 1.6 and w[0] > 0.3
     assert np.allclose(nav.waypoint(np.array([0.0, 3.9]), 1.5), (0.0, 4.0))
+
+
+def test_numpy_sampling_matches_the_differentiable_one():
+    nav = NavigationField(wall_with_door(), (0.0, 4.0))
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(-6.0, 8.0, (50, 2))
+    torch_vals = nav(torch.tensor(pts, dtype=torch.float32)).numpy()
+    np_vals = np.array([nav._sample(p) for p in pts])
+    assert np.allclose(torch_vals, np_vals, atol=1e-3)
