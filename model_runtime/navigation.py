@@ -103,6 +103,10 @@ class NavigationField:
         cost[off[0]:off[0] + blocked.shape[0], off[1]:off[1] + blocked.shape[1]][blocked] = blocked_cost
         u = solve_eikonal(cost, tuple((goal - lo) / cell), cell)
         self._u = u
+        # each cell's unit direction of steepest descent, for walking along the field (waypoint) in a few us a step
+        gx, gy = np.gradient(u, cell)
+        norm = np.hypot(gx, gy)
+        self._down = -np.stack((gx, gy), -1) / np.maximum(norm, 1e-9)[..., None]
         self._map = torch.from_numpy(u.astype(np.float32))[None, None]      # (1, 1, nx, ny)
         self._shape = torch.tensor(n, dtype=torch.float32)
         self._lo = torch.tensor(lo + 0.5 * cell, dtype=torch.float32)             # first cell centre
@@ -150,8 +154,11 @@ class NavigationField:
         goal if it is nearer: where to face while walking there."""
         p = np.asarray(xy, np.float64)[:2].copy()
         step = self.cell
+        n = self._u.shape
         for _ in range(max(1, int(np.ceil(distance / step)))):
             if float(np.hypot(*(self.goal - p))) <= step:
                 return self.goal.copy()
-            p = p + step * self.heading(p)
+            i, j = ((p - self.origin) / step).astype(int)
+            inside = 0 <= i < n[0] and 0 <= j < n[1]
+            p = p + step * (self._down[i, j] if inside else self.heading(p))
         return p

@@ -189,6 +189,8 @@ class OccupancyGrid:
         if not np.isfinite(m).all():
             raise InputError("transform contains NaN or infinite values: pass a valid ego-to-world matrix")
         key_b, key_r = _ego_key(bounds, resolution)
+        if m[2, 0] == 0.0 and m[2, 1] == 0.0 and m[0, 2] == 0.0 and m[1, 2] == 0.0:
+            return self._sample_upright(m, key_b, key_r)
         local = _ego_cell_centres(key_b, key_r)                 # (4, R) homogeneous, one row per axis
         # One affine map from ego-local metres straight into padded voxel index space. Rows, not (R, 3):
         # NumPy is several times slower on a length-3 inner axis.
@@ -200,6 +202,25 @@ class OccupancyGrid:
         np.floor(f, out=f)
         np.clip(f, 0.0, self._last[:, None], out=f)           # anything outside lands on the free border
         occ = self._flat[(self._strides @ f).astype(np.intp)]
+        return occ.reshape(key_r).astype(np.float32)
+
+    def _sample_upright(self, m: np.ndarray, key_b: tuple, key_r: tuple[int, int, int]) -> np.ndarray:
+        """sample_ego for an ego frame turned about Z only (every canonical frame is): the height index of a
+        cell does not depend on x and y, so the map runs once per column (rx * ry) and once per level (rz)
+        instead of once per cell, about 4x faster at 32^3. Same cells as the general path."""
+        inv = 1.0 / self.voxel_size
+        (x0, x1), (y0, y1), (z0, z1) = key_b
+        rx, ry, rz = key_r
+        xs = x0 + (np.arange(rx) + 0.5) * ((x1 - x0) / rx)
+        ys = y0 + (np.arange(ry) + 0.5) * ((y1 - y0) / ry)
+        zs = z0 + (np.arange(rz) + 0.5) * ((z1 - z0) / rz)
+        gx, gy = np.meshgrid(xs, ys, indexing="ij")
+        shift = (m[:3, 3] - self.origin) * inv + 1.0
+        fx = np.clip(np.floor(m[0, 0] * inv * gx + m[0, 1] * inv * gy + shift[0]), 0.0, self._last[0])
+        fy = np.clip(np.floor(m[1, 0] * inv * gx + m[1, 1] * inv * gy + shift[1]), 0.0, self._last[1])
+        fz = np.clip(np.floor(m[2, 2] * inv * zs + shift[2]), 0.0, self._last[2])
+        column = (fx * self._strides[0] + fy * self._strides[1]).reshape(-1, 1)
+        occ = self._flat[(column + fz * self._strides[2]).astype(np.intp)]
         return occ.reshape(key_r).astype(np.float32)
 
     # ------------------------------------------------------------------ files

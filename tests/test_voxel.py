@@ -344,3 +344,24 @@ def test_a_grid_of_0_1_numbers_is_the_boolean_grid():
     occ = np.zeros((3, 3, 3), np.float32)
     occ[1, 1, 1] = 1.0
     assert np.array_equal(OccupancyGrid((0, 0, 0), 0.1, occ).occupancy, occ.astype(bool))
+
+
+def test_sample_ego_upright_and_tilted_frames_match_point_queries():
+    """Upright ego frames (turned about Z only) take a faster path; both paths give the occupancy of the world
+    cell under each ego-local cell centre, as `occupied` does point by point."""
+    rng = np.random.default_rng(3)
+    occ = rng.random((40, 36, 24)) < 0.3
+    g = OccupancyGrid((-1.0, -0.8, 0.0), 0.07, occ)
+    bounds, res = ((-1.2, 1.2), (-0.6, 1.8), (0.1, 1.2)), (8, 12, 6)
+    axes = [lo + (np.arange(r) + 0.5) * ((hi - lo) / r) for (lo, hi), r in zip(bounds, res)]
+    local = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
+    for tilt in (0.0, 0.2):
+        for _ in range(10):
+            yaw = rng.uniform(-np.pi, np.pi)
+            c, s = np.cos(yaw), np.sin(yaw)
+            m = np.eye(4)
+            m[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.array(
+                [[1.0, 0.0, 0.0], [0.0, np.cos(tilt), -np.sin(tilt)], [0.0, np.sin(tilt), np.cos(tilt)]])
+            m[:3, 3] = (rng.uniform(-1.0, 2.0), rng.uniform(-1.0, 2.0), rng.uniform(0.0, 0.3))
+            world = local @ m[:3, :3].T + m[:3, 3]
+            assert np.array_equal(g.sample_ego(m, bounds=bounds, resolution=res), g.occupied(world).astype(np.float32))
