@@ -103,20 +103,28 @@ def _clearance(model, alpha: float, seed: int, frames: int = 50) -> float:
     return closest
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2, 3])
-def test_two_egos_walking_toward_each_other_keep_clear(shipped_model, seed):
-    """alpha_HHI 1 (test-time control on, the default): at least 0.10 m between any two joints. Seed 2 walked
-    straight into the other (0.01 m) while only the joints' margin kept them apart: passing fixed that."""
-    apart = _clearance(shipped_model, 1.0, seed)
-    assert apart >= 0.10, f"seed {seed}: {apart:.3f} m"
+SEEDS = range(10)
 
 
-@pytest.mark.parametrize("seed", [0, 1, 3])
-def test_two_egos_ignoring_each_other_come_closer(shipped_model, seed):
-    """alpha_HHI 0 ignores the other ego: they come closer than at alpha 1 (seed 2 passes 0.19 m apart either
-    way, too close a call to test)."""
-    ignoring, apart = _clearance(shipped_model, 0.0, seed), _clearance(shipped_model, 1.0, seed)
-    assert ignoring < apart, f"seed {seed}: alpha 0 {ignoring:.3f} m, alpha 1 {apart:.3f} m"
+@pytest.fixture(scope="module")
+def clearances(shipped_model):
+    """Smallest joint distance of the two egos per seed, at alpha_HHI 1 and 0."""
+    return {alpha: [_clearance(shipped_model, alpha, seed) for seed in SEEDS] for alpha in (1.0, 0.0)}
+
+
+def test_two_egos_walking_toward_each_other_keep_clear(clearances):
+    """alpha_HHI 1 (test-time control on, the default): at least 0.10 m between any two joints, every seed."""
+    apart = clearances[1.0]
+    assert min(apart) >= 0.10, [round(c, 3) for c in apart]
+
+
+def test_two_egos_ignoring_each_other_come_closer(clearances):
+    """alpha_HHI 0 ignores the other ego: over the seeds they come closer than at alpha 1, in most seeds and on
+    average (per seed it is not always so: two egos walking past each other by chance can miss at alpha 0)."""
+    apart, ignoring = clearances[1.0], clearances[0.0]
+    closer = sum(i < a for i, a in zip(ignoring, apart))
+    assert closer > len(apart) / 2, (ignoring, apart)
+    assert np.mean(ignoring) < np.mean(apart) - 0.2, (ignoring, apart)
 
 
 def test_bad_group_input_is_one_line_and_changes_nothing(tiny_model):

@@ -88,10 +88,26 @@ def test_both_encoders_share_one_prompt_cache(static):
 
 # ------------------------------------------------------------------------------ checkpoints
 
-def test_shipped_hashed_checkpoint_still_loads():
-    model = load_model()
-    assert model.cfg.text["name"] == "hashed_ngram" and isinstance(model.text_encoder, HashedNgramEncoder)
+# the text config stored in the default-preset files trained before the static encoder (the weights shipped
+# until 2026-11-24 among them)
+OLD_DEFAULT_TEXT = {"name": "hashed_ngram", "dim": 128, "buckets": 8192, "seed": 1234}
+
+
+@pytest.mark.filterwarnings("ignore:.*untrained")   # random weights, saved and loaded again on purpose
+def test_older_hashed_default_checkpoints_still_load(tmp_path):
+    from dataclasses import replace
+
+    from model_runtime.model import ReMoGenModel
+    old = ReMoGenModel(replace(PRESETS["default"], text=dict(OLD_DEFAULT_TEXT)))
+    model = load_model(save_model(old, tmp_path / "old.pt"))
+    assert model.cfg.text == OLD_DEFAULT_TEXT and isinstance(model.text_encoder, HashedNgramEncoder)
+    assert torch.equal(model.encode_text("a person walks"), old.encode_text("a person walks"))
     assert model.encode_text("a person walks").shape == (1, model.cfg.text_dim)
+
+
+def test_shipped_checkpoint_reads_prompts_with_the_static_encoder():
+    model = load_model()
+    assert model.cfg.text == STATIC_TEXT and isinstance(model.text_encoder, StaticSubwordEncoder)
 
 
 @pytest.mark.filterwarnings("ignore:.*untrained")   # random weights, saved and loaded again on purpose
