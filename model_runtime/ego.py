@@ -21,7 +21,7 @@ from .errors import MAX_COORD, InputError
 from .features import (ROOT_T, ROT6D, canonical_frame, feature_joints, features_from_pose, to_canonical,
                        world_points_to_canonical)
 from .footlock import FootLock
-from .navigation import NAV_CELL, NavigationField
+from .navigation import NAV_CELL, FloorMap, NavigationField
 from .quat import matrix_to_quat_np
 from .skeleton import (NUM_JOINTS, forward_kinematics_np, quat_to_matrix, rot6d_to_matrix_np,
                        standing_pelvis_height, yaw_matrix)
@@ -176,7 +176,7 @@ class Ego:
         self.cue_id: int = -1                # which one: -1 the partner, else the index of another ego
         self.passing: tuple[int, np.ndarray] | None = None   # (cue_id, world direction) while passing it
         self.goal: np.ndarray | None = None
-        self._nav: tuple | None = None       # (grid, goal xy, NavigationField) of the latest goal, see navigation()
+        self._nav: tuple | None = None       # (floor map, goal xy, NavigationField) of the latest goal, see navigation()
         self.gen = torch.Generator().manual_seed(self._seed)
         self.seg: dict | None = None         # this ego's part of the running segment
         latest = feature_joints(hist_world[-1]).numpy().astype(np.float32)
@@ -268,21 +268,22 @@ class Ego:
             return None
         return world_points_to_canonical(torch.as_tensor(self.goal).view(1, 1, 3), rot, trans)[:, 0]
 
-    def navigation(self, scene: Any) -> NavigationField:
-        """The walking-distance field to its goal around `scene`, rebuilt only when the grid changes or the goal
-        moves by more than half a floor cell (a build takes about 10 ms; dragging a goal rebuilds it)."""
+    def navigation(self, floor: FloorMap) -> NavigationField:
+        """The walking-distance field to its goal on the scene's floor map, rebuilt only when the map changes or
+        the goal moves by more than half a floor cell (a build takes a few ms; dragging a goal rebuilds it)."""
         goal = np.asarray(self.goal, np.float64)[:2]
         cached = self._nav
-        if cached is None or cached[0] is not scene or np.hypot(*(cached[1] - goal)) > NAV_CELL / 2:
-            cached = self._nav = (scene, goal, NavigationField(scene, goal))
+        if cached is None or cached[0] is not floor or np.hypot(*(cached[1] - goal)) > NAV_CELL / 2:
+            cached = self._nav = (floor, goal, NavigationField(floor, goal))
         return cached[2]
 
     def control_targets(self, rot: torch.Tensor, trans: torch.Tensor, lead: int,
                         field: Callable[[], DistanceField] | None, cc: ControlConfig,
-                        alpha: dict[str, float] | None = None, scene: Any = None) -> ControlTargets:
-        """Test-time control of one job: its costs' targets in the job's canonical frame. `field` gives the
-        scene's distance field (built on first use), None without a scene; `scene` the grid itself, for the
-        walking distance to the goal around it; `alpha` the alphas to steer with (default: the current ones)."""
+                        alpha: dict[str, float] | None = None,
+                        floor: Callable[[], FloorMap] | None = None) -> ControlTargets:
+        """Test-time control of one job: its costs' targets in the job's canonical frame. `field` and `floor` give
+        the scene's distance field and floor map (each built once per grid), None without a scene; `alpha` the
+        alphas to steer with (default: the current ones)."""
         alpha = self._alpha if alpha is None else alpha
         targets = ControlTargets(alpha_hhi=alpha["hhi"], alpha_hsi=alpha["hsi"])
         if targets.alpha_hhi > 0.0:
@@ -297,11 +298,10 @@ class Ego:
                 targets.field, targets.to_world = field(), (rot, trans)
             if self.goal is not None:
                 targets.goal_xy = world_points_to_canonical(torch.as_tensor(self.goal).view(1, 3), rot, trans)[0, :2]
-                nav = self.navigation(scene) if scene is not None and field is not None else None
-                if nav is not None and nav.blocks:
-                    targets.nav = nav
+                if floor is not None and floor().blocks:
+                    targets.nav = nav = self.navigation(floor())
                     start = trans[:2].numpy()    # the canonical origin: the ego at the segment's start
-                    ahead = targets.nav.waypoint(start, NAV_LOOK_AHEAD)
+                    ahead = nav.waypoint(start, NAV_LOOK_AHEAD)
                     targets.face_xy = world_points_to_canonical(
                         torch.tensor([ahead[0], ahead[1], 0.0], dtype=torch.float32).view(1, 3), rot, trans)[0, :2]
         return targets

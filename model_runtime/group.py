@@ -36,6 +36,7 @@ import torch
 from .checks import Checked, check_control_config, check_partner, check_point, check_scene
 from .control import ControlConfig, LatentSteer, SegmentCosts
 from .distance_field import DistanceField
+from .navigation import FloorMap
 from .ego import Ego, EgoFrame, EgoSettings, frames_from_world_features, output_problem
 from .errors import InputError, ModelOutputError
 from .features import feature_joints, to_world
@@ -55,7 +56,7 @@ class ReactionGroup:
         self.egos: list[Ego] = [Ego(self.model, s) for s in egos]
         self.control = control
         self.control_config = control_config if control_config is not None else ControlConfig()
-        self._field: tuple[Any, DistanceField] | None = None   # (grid, its distance field), built on first use
+        self._maps: tuple[Any, dict] | None = None   # (grid, {kind: map of it}), each map built on first use
         self.slide = bool(slide)
         self.scene = scene
         self._job: DiffusionJob | None = None
@@ -203,13 +204,13 @@ class ReactionGroup:
         the segment that sees the other coming is otherwise decided a segment ahead, too late to step aside.
         With the alphas the segment was made with: a slider moved since acts from the next segment on."""
         seg, cc = self._seg, self._control_config
-        field = self._distance_field if self._scene is not None else None
+        field, floor = (self._distance_field, self._floor_map) if self._scene is not None else (None, None)
         rows, targets = [], []
         last = self.cfg.future - 1 + int(cc.look_ahead) - f      # the segment's frames to play and its look-ahead
         for i, e in enumerate(self.egos):
             alpha = e.seg["alpha"]
             if alpha["hhi"] > 0.0 and e.pass_away(cc) is not None and e.passing_reaches(cc, 0, last):
-                t = e.control_targets(e.seg["rot"], e.seg["trans"], -f, field, cc, alpha, self._scene)
+                t = e.control_targets(e.seg["rot"], e.seg["trans"], -f, field, cc, alpha, floor)
                 if t.pass_away is not None:
                     rows.append(i)
                     targets.append(t)
@@ -296,18 +297,28 @@ class ReactionGroup:
         """Test-time control of a job (or of a boundary, with `keep`): each ego's cost targets in its canonical
         frame, with `alphas` (default: the egos' current ones)."""
         cc = self._control_config
-        field = self._distance_field if self._scene is not None else None
+        field, floor = (self._distance_field, self._floor_map) if self._scene is not None else (None, None)
         alphas = alphas if alphas is not None else [None] * len(self.egos)
-        targets = [e.control_targets(rot, trans, lead, field, cc, a, self._scene)
+        targets = [e.control_targets(rot, trans, lead, field, cc, a, floor)
                    for e, (rot, trans, _), a in zip(self.egos, canon, alphas)]
         return LatentSteer(self.model, hist_n, SegmentCosts(self.model.stats, hist_n, targets, cc, keep=keep), cc,
                            step_size=step_size)
 
+    def _scene_map(self, kind: type):
+        """The scene's map of one kind (DistanceField, FloorMap), built once per grid (a grid never changes once
+        built)."""
+        if self._maps is None or self._maps[0] is not self._scene:
+            self._maps = (self._scene, {})
+        maps = self._maps[1]
+        if kind not in maps:
+            maps[kind] = kind(self._scene)
+        return maps[kind]
+
     def _distance_field(self) -> DistanceField:
-        """The scene's distance field, built once per grid (a grid never changes once built)."""
-        if self._field is None or self._field[0] is not self._scene:
-            self._field = (self._scene, DistanceField(self._scene))
-        return self._field[1]
+        return self._scene_map(DistanceField)
+
+    def _floor_map(self) -> FloorMap:
+        return self._scene_map(FloorMap)
 
     def _encode_contexts(self, canon: list[tuple]) -> Contexts:
         cues = [e.cue_window(rot, trans, self.cfg.partner_window) for e, (rot, trans, _) in zip(self.egos, canon)]

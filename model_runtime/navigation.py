@@ -82,17 +82,27 @@ def solve_eikonal(cost: np.ndarray, source: tuple[float, float], cell: float) ->
     return u
 
 
+class FloorMap:
+    """Where one grid's obstacles block walking (`blocked_floor`): it depends on the grid alone, so it is built
+    once per grid and shared by every goal and every ego."""
+
+    def __init__(self, grid, cell: float = NAV_CELL, clearance: float = NAV_CLEARANCE) -> None:
+        self.cell = float(cell)
+        self.origin, self.blocked = blocked_floor(grid, cell, clearance)
+        self.blocks = bool(self.blocked.any())  # False: nothing in the way, the straight line is the way
+
+
 class NavigationField:
-    """The walking distance to one floor goal around one grid's obstacles, as a differentiable function of
+    """The walking distance to one floor goal around one floor map's obstacles, as a differentiable function of
     world floor points (..., 2) -> (...) metres (straight-line metres where nothing is in the way)."""
 
-    def __init__(self, grid, goal_xy, cell: float = NAV_CELL, clearance: float = NAV_CLEARANCE,
-                 blocked_cost: float = BLOCKED_COST, margin: float = NAV_MARGIN) -> None:
+    def __init__(self, floor: FloorMap, goal_xy, blocked_cost: float = BLOCKED_COST,
+                 margin: float = NAV_MARGIN) -> None:
         goal = np.asarray(goal_xy, np.float64)[:2]
         self.goal = goal
-        self.cell = float(cell)
-        grid_origin, blocked = blocked_floor(grid, cell, clearance)
-        self.blocks = bool(blocked.any())       # False: nothing in the way, the straight line is the way
+        self.floor = floor
+        self.cell = cell = floor.cell
+        grid_origin, blocked = floor.origin, floor.blocked
         lo = np.minimum(grid_origin, goal) - margin
         hi = np.maximum(grid_origin + np.asarray(blocked.shape) * cell, goal) + margin
         n = np.ceil((hi - lo) / cell).astype(int)
@@ -108,9 +118,13 @@ class NavigationField:
         norm = np.hypot(gx, gy)
         self._down = -np.stack((gx, gy), -1) / np.maximum(norm, 1e-9)[..., None]
         self._map = torch.from_numpy(u.astype(np.float32))[None, None]      # (1, 1, nx, ny)
-        self._shape = torch.tensor(n, dtype=torch.float32)
         self._lo = torch.tensor(lo + 0.5 * cell, dtype=torch.float32)             # first cell centre
         self._hi = torch.tensor(lo + (n - 0.5) * cell, dtype=torch.float32)       # last cell centre
+
+    @property
+    def blocks(self) -> bool:
+        """Whether anything stands in the way on its floor map (else the straight line is the way)."""
+        return self.floor.blocks
 
     def __call__(self, xy: torch.Tensor) -> torch.Tensor:
         inside = torch.minimum(torch.maximum(xy, self._lo), self._hi)

@@ -209,11 +209,7 @@ class OccupancyGrid:
         cell does not depend on x and y, so the map runs once per column (rx * ry) and once per level (rz)
         instead of once per cell, about 4x faster at 32^3. Same cells as the general path."""
         inv = 1.0 / self.voxel_size
-        (x0, x1), (y0, y1), (z0, z1) = key_b
-        rx, ry, rz = key_r
-        xs = x0 + (np.arange(rx) + 0.5) * ((x1 - x0) / rx)
-        ys = y0 + (np.arange(ry) + 0.5) * ((y1 - y0) / ry)
-        zs = z0 + (np.arange(rz) + 0.5) * ((z1 - z0) / rz)
+        xs, ys, zs = _ego_axes(key_b, key_r)
         gx, gy = np.meshgrid(xs, ys, indexing="ij")
         shift = (m[:3, 3] - self.origin) * inv + 1.0
         fx = np.clip(np.floor(m[0, 0] * inv * gx + m[0, 1] * inv * gy + shift[0]), 0.0, self._last[0])
@@ -384,10 +380,18 @@ def _ego_key(bounds: Any, resolution: Any) -> tuple[tuple[tuple[float, float], .
 
 
 @functools.lru_cache(maxsize=32)
+def _ego_axes(bounds: tuple[tuple[float, float], ...], res: tuple[int, int, int]) -> tuple[np.ndarray, ...]:
+    """The ego-local cell centres along x, y and z; built once per key."""
+    axes = tuple(lo + (np.arange(r) + 0.5) * ((hi - lo) / r) for (lo, hi), r in zip(bounds, res))
+    for a in axes:
+        a.flags.writeable = False
+    return axes
+
+
+@functools.lru_cache(maxsize=32)
 def _ego_cell_centres(bounds: tuple[tuple[float, float], ...], res: tuple[int, int, int]) -> np.ndarray:
     """(4, rx*ry*rz) homogeneous ego-local cell centres, columns in [x, y, z] C order; built once per key."""
-    axes = [lo + (np.arange(r) + 0.5) * ((hi - lo) / r) for (lo, hi), r in zip(bounds, res)]
-    grid = np.meshgrid(*axes, indexing="ij")
+    grid = np.meshgrid(*_ego_axes(bounds, res), indexing="ij")
     out = np.ones((4, grid[0].size))
     for i in range(3):
         out[i] = grid[i].reshape(-1)

@@ -5,7 +5,7 @@ import numpy as np
 import torch
 
 from model_runtime.control import ControlConfig, goal_cost
-from model_runtime.navigation import NavigationField, solve_eikonal
+from model_runtime.navigation import FloorMap, NavigationField, solve_eikonal
 from model_runtime.voxel import OccupancyGrid
 
 
@@ -34,7 +34,7 @@ def test_eikonal_solution_is_the_straight_distance_on_open_floor():
 
 
 def test_walking_distance_goes_through_the_door_and_heads_for_it():
-    nav = NavigationField(wall_with_door(), (0.0, 4.0))
+    nav = NavigationField(FloorMap(wall_with_door()), (0.0, 4.0))
     assert nav.blocks
     start = np.array([0.0, 0.0])
     straight = 4.0
@@ -50,19 +50,19 @@ def test_walking_distance_goes_through_the_door_and_heads_for_it():
 
 
 def test_walking_distance_is_continuous_beyond_the_map_and_has_gradients():
-    nav = NavigationField(box(), (0.0, 4.0))
+    nav = NavigationField(FloorMap(box()), (0.0, 4.0))
     p = torch.tensor([[30.0, -20.0], [0.0, 0.0]], requires_grad=True)
     d = nav(p)
     assert float(d[0].detach()) > 30.0 and torch.isfinite(d).all()
     d.sum().backward()
     assert torch.isfinite(p.grad).all() and float(p.grad.norm()) > 0
     # an open floor (the box far away from the way) measures like the straight line
-    far_box = NavigationField(box(centre=(8.0, 8.0)), (0.0, 4.0))
+    far_box = NavigationField(FloorMap(box(centre=(8.0, 8.0))), (0.0, 4.0))
     assert abs(float(far_box(torch.zeros(2))) - 4.0) < 0.3
 
 
 def test_goal_cost_with_walking_distance_steers_around_a_box_in_the_way():
-    nav = NavigationField(box(centre=(0.0, 2.0), half=0.5), (0.0, 4.0))
+    nav = NavigationField(FloorMap(box(centre=(0.0, 2.0), half=0.5)), (0.0, 4.0))
     start = torch.zeros(2)
     goal = torch.tensor([0.0, 4.0])
     pelvis = torch.zeros(8, 3)
@@ -77,14 +77,14 @@ def test_goal_cost_with_walking_distance_steers_around_a_box_in_the_way():
 
 
 def test_waypoint_walks_along_the_field_and_stops_at_the_goal():
-    nav = NavigationField(wall_with_door(), (0.0, 4.0))
+    nav = NavigationField(FloorMap(wall_with_door()), (0.0, 4.0))
     w = nav.waypoint(np.array([0.0, 0.0]), 1.5)
     assert 1.2 < float(np.hypot(*w)) < 1.6 and w[0] > 0.3
     assert np.allclose(nav.waypoint(np.array([0.0, 3.9]), 1.5), (0.0, 4.0))
 
 
 def test_numpy_sampling_matches_the_differentiable_one():
-    nav = NavigationField(wall_with_door(), (0.0, 4.0))
+    nav = NavigationField(FloorMap(wall_with_door()), (0.0, 4.0))
     rng = np.random.default_rng(0)
     pts = rng.uniform(-6.0, 8.0, (50, 2))
     torch_vals = nav(torch.tensor(pts, dtype=torch.float32)).numpy()
