@@ -37,15 +37,25 @@ def save_model(model: ReMoGenModel, path: str | os.PathLike, meta: dict | None =
         raise ModelFileError(f"not saving {path}: the model's weight {bad} holds NaN or inf values (training "
                              "diverged); resume from an earlier state or lower the learning rate")
     path.parent.mkdir(parents=True, exist_ok=True)
-    payload = {
-        "format": FORMAT, "format_version": FORMAT_VERSION, "config": model.cfg.to_dict(),
-        "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()},
-        "meta": dict(model.meta, **(meta or {})),
-    }
+    payload = {"format": FORMAT, "format_version": FORMAT_VERSION, **model_payload(model),
+               "meta": dict(model.meta, **(meta or {}))}
     tmp = path.with_suffix(path.suffix + ".tmp")
     torch.save(payload, tmp)
     os.replace(tmp, path)
     return path
+
+
+def model_payload(model: ReMoGenModel) -> dict:
+    """A model's config and weights as plain data (what a model file holds besides its meta)."""
+    return {"config": model.cfg.to_dict(),
+            "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()}}
+
+
+def model_from_payload(payload: dict) -> ReMoGenModel:
+    """The model of a `model_payload` (already read safely), in float32 on the CPU."""
+    model = ReMoGenModel(ModelConfig.from_dict(payload["config"]))
+    model.load_state_dict(payload["state_dict"], strict=True)
+    return model
 
 
 def _read_payload(path: Path) -> dict:

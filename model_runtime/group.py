@@ -9,6 +9,9 @@ the next job to start and shows in the segment it produces, 0.8 to 1.5 s of mode
 while FWSR reacts to the partner every frame and switching FWSR on or off acts on the next frame.
 (A background thread for the diffusion was measured and rejected: with two Python threads issuing
 small torch ops, GIL contention made the job finish later than spreading it, p99 38 ms vs 9 ms.)
+With `pipeline=True` each job after the first runs instead in a helper process (job_worker.py) while
+this one plays the segment's frames, and is collected at the segment's start: the same latent, so the
+same motion, with only the frames' own work left on the caller's thread.
 With FWSR on, every frame f >= 1 of a segment re-decodes a latent refined from the latest history and
 partner frames (Algorithm 1), so reactions show up within a frame rather than at the next segment.
 `slide=True` is the paper's ablation: a full diffusion every frame. Every frame is checked before it is
@@ -40,7 +43,9 @@ from .navigation import FloorMap
 from .ego import Ego, EgoFrame, EgoSettings, frames_from_world_features, output_problem
 from .errors import InputError, ModelOutputError
 from .features import feature_joints, to_world
-from .model import Contexts, DiffusionJob, ReMoGenModel, non_finite_weight
+from .job_spec import JobSpec, build_job
+from .job_worker import JobWorker, RemoteJob, WorkerError, pipelinable, shared_worker
+from .model import DiffusionJob, ReMoGenModel, job_draws, non_finite_weight
 from .schedule import BOUNDARY_COST, STEERED_STEP_COST, steps_per_frame
 
 
@@ -48,7 +53,7 @@ class ReactionGroup:
     """Online reaction generation for several egos stepped as one batch. See the module docstring."""
 
     def __init__(self, model: ReMoGenModel, egos: Sequence[EgoSettings], scene: Any = None, slide: bool = False,
-                 control: bool = True, control_config: ControlConfig | None = None) -> None:
+                 control: bool = True, control_config: ControlConfig | None = None, pipeline: bool = False) -> None:
         if isinstance(egos, EgoSettings) or not isinstance(egos, Sequence) or len(egos) == 0:
             raise InputError("egos must be a non-empty list of model_runtime.EgoSettings, one per ego")
         self.model = model.eval()
@@ -59,7 +64,9 @@ class ReactionGroup:
         self._maps: tuple[Any, dict] | None = None   # (grid, {kind: map of it}), each map built on first use
         self.slide = bool(slide)
         self.scene = scene
-        self._job: DiffusionJob | None = None
+        self._worker: JobWorker | None = None
+        self.pipeline = pipeline
+        self._job: DiffusionJob | RemoteJob | None = None
         self.reset()
 
     # ------------------------------------------------------------------ settings shared by every ego
@@ -67,6 +74,19 @@ class ReactionGroup:
                             "segment on.")
     control_config = Checked(check_control_config)
     scene = Checked(check_scene)
+
+    @property
+    def pipeline(self) -> bool:
+        """Run each segment's diffusion in a helper process while this one plays frames (job_worker.py): the
+        same motion, less work per step on the caller's thread. Starts the shared helper (a second or two,
+        meanwhile jobs run here); from the next segment on."""
+        return self._pipeline
+
+    @pipeline.setter
+    def pipeline(self, value: bool) -> None:
+        self._pipeline = bool(value)
+        if self._pipeline and self._worker is None and pipelinable(self.model):
+            self._worker = shared_worker()
 
     # ------------------------------------------------------------------ reset
     def reset(self, root_positions: Sequence | None = None, yaws: Sequence[float] | None = None,
@@ -178,7 +198,7 @@ class ReactionGroup:
             seg = self._seg = self._start_segment(job)
             predicted = [to_world(self.model.stats.denormalize(seg["future"][i, -cfg.history:]),
                                   e.seg["rot"], e.seg["trans"]) for i, e in enumerate(self.egos)]
-            self._job = self._new_job(predicted, lead=cfg.future)
+            self._job = self._new_job(predicted, lead=cfg.future, ahead=True)
         f = seg["f"]
         if f == 0:
             job = self._job
@@ -279,28 +299,38 @@ class ReactionGroup:
             e.seg = {"rot": rot, "trans": trans, "emitted": h[0], "alpha": alpha}
         return {"hist_n": hist_n, "z0": z0, "future": self.model.decode(hist_n, z0), "f": 0}
 
-    def _new_job(self, hist_worlds: list[torch.Tensor], lead: int) -> DiffusionJob:
+    def _new_job(self, hist_worlds: list[torch.Tensor], lead: int, ahead: bool = False) -> DiffusionJob | RemoteJob:
         """A diffusion job for the segments that start after `hist_worlds` (real or predicted, one per ego),
-        whose first frame plays `lead` frames after the latest partner frame."""
+        whose first frame plays `lead` frames after the latest partner frame. A job for a segment `ahead`
+        of the one playing runs in the helper process when pipelining, else here, spread over frames."""
         canon = [e.canonical_history(h) for e, h in zip(self.egos, hist_worlds)]
-        hist_n = torch.cat([c[2] for c in canon])
-        contexts = self._encode_contexts(canon)
-        cc = self._control_config
-        steer = self._steer(hist_n, canon, lead) if self._control else None
         egos = self.egos
-        return DiffusionJob(self.model, hist_n, torch.cat([e.text_emb for e in egos]), contexts,
-                            [e.alpha for e in egos], [e.guidance for e in egos], [e.gen for e in egos],
-                            steer=steer, steered_steps=cc.steered_steps, final_steers=cc.final_steers)
+        spec = JobSpec(hist_n=torch.cat([c[2] for c in canon]), text_emb=torch.cat([e.text_emb for e in egos]),
+                       **self._context_inputs(canon), alpha=[e.alpha for e in egos],
+                       guidance=[e.guidance for e in egos],
+                       targets=self._targets(canon, lead) if self._control else None,
+                       control=self._control_config if self._control else None,
+                       noise=job_draws(self.model, [e.gen for e in egos], len(egos)))
+        if ahead and self._pipeline and self._worker is not None and self._worker.usable:
+            try:
+                return RemoteJob(self._worker, self.model, spec)
+            except WorkerError:
+                pass          # gone meanwhile: this job, and the next ones, run here
+        return build_job(self.model, spec)
 
-    def _steer(self, hist_n: torch.Tensor, canon: list[tuple], lead: int, keep: torch.Tensor | None = None,
-               step_size: float | None = None, alphas: list[dict] | None = None) -> LatentSteer:
-        """Test-time control of a job (or of a boundary, with `keep`): each ego's cost targets in its canonical
-        frame, with `alphas` (default: the egos' current ones)."""
+    def _targets(self, canon: list[tuple], lead: int, alphas: list[dict] | None = None) -> list:
+        """Each ego's control targets in its canonical frame, with `alphas` (default: the egos' current ones)."""
         cc = self._control_config
         field, floor = (self._distance_field, self._floor_map) if self._scene is not None else (None, None)
         alphas = alphas if alphas is not None else [None] * len(self.egos)
-        targets = [e.control_targets(rot, trans, lead, field, cc, a, floor)
-                   for e, (rot, trans, _), a in zip(self.egos, canon, alphas)]
+        return [e.control_targets(rot, trans, lead, field, cc, a, floor)
+                for e, (rot, trans, _), a in zip(self.egos, canon, alphas)]
+
+    def _steer(self, hist_n: torch.Tensor, canon: list[tuple], lead: int, keep: torch.Tensor | None = None,
+               step_size: float | None = None, alphas: list[dict] | None = None) -> LatentSteer:
+        """Test-time control of a boundary (with `keep`): each ego's cost targets in its canonical frame."""
+        cc = self._control_config
+        targets = self._targets(canon, lead, alphas)
         return LatentSteer(self.model, hist_n, SegmentCosts(self.model.stats, hist_n, targets, cc, keep=keep), cc,
                            step_size=step_size)
 
@@ -320,7 +350,8 @@ class ReactionGroup:
     def _floor_map(self) -> FloorMap:
         return self._scene_map(FloorMap)
 
-    def _encode_contexts(self, canon: list[tuple]) -> Contexts:
+    def _context_inputs(self, canon: list[tuple]) -> dict:
+        """What the context encoders read, per ego in its canonical frame (JobSpec fields)."""
         cues = [e.cue_window(rot, trans, self.cfg.partner_window) for e, (rot, trans, _) in zip(self.egos, canon)]
         occupancy = None
         if self._scene is not None:
@@ -331,10 +362,10 @@ class ReactionGroup:
             goal = torch.cat([g if g is not None else torch.zeros(1, 3) for g in goals])
             if any(g is None for g in goals):
                 has_goal = torch.tensor([g is not None for g in goals])
-        # Only the modules a job uses: a job keeps the alpha it starts with, so a slider moved
+        # The job encodes only the modules it uses: it keeps the alpha it starts with, so a slider moved
         # mid-segment takes effect from the next segment's diffusion (module docstring).
-        return self.model.encode_contexts(torch.cat([c[0] for c in cues]), torch.cat([c[1] for c in cues]),
-                                          occupancy, goal, [e.alpha for e in self.egos], has_goal)
+        return {"partner": torch.cat([c[0] for c in cues]), "present": torch.cat([c[1] for c in cues]),
+                "occupancy": occupancy, "goal": goal, "has_goal": has_goal}
 
     # ------------------------------------------------------------------ introspection
     @property

@@ -308,7 +308,7 @@ class DiffusionJob:
 
     def __init__(self, model: ReMoGenModel, hist: torch.Tensor, text_emb: torch.Tensor, contexts: Contexts,
                  alpha: dict[str, float] | list[dict[str, float]], guidance: float | list[float],
-                 generator: torch.Generator | list[torch.Generator],
+                 generator: torch.Generator | list[torch.Generator] | NoiseDraws,
                  steer: Callable[[torch.Tensor], torch.Tensor] | None = None, steered_steps: int = 0,
                  final_steers: int = 0) -> None:
         self.model, self.hist, self.text_emb, self.contexts = model, hist, text_emb, contexts
@@ -337,12 +337,16 @@ class DiffusionJob:
         return self.result is not None
 
     def snapshot(self) -> tuple:
-        """The progress `advance` changes (not the shared generator: its owner saves that)."""
-        return self.z, self.t, self._clean, self._steers_left, self.result, dict(self._cache)
+        """The progress `advance` changes (not a shared generator: its owner saves that; draws made in advance
+        are the job's own, so where it is in them is saved here)."""
+        taken = self.gen.taken if isinstance(self.gen, NoiseDraws) else None
+        return self.z, self.t, self._clean, self._steers_left, self.result, dict(self._cache), taken
 
     def restore(self, snap: tuple) -> None:
-        self.z, self.t, self._clean, self._steers_left, self.result, cache = snap
+        self.z, self.t, self._clean, self._steers_left, self.result, cache, taken = snap
         self._cache = dict(cache)
+        if taken is not None:
+            self.gen.taken = taken
 
     def advance(self, steps: int) -> None:
         for _ in range(steps):
@@ -366,11 +370,37 @@ class DiffusionJob:
                 self.result = self._clean
 
 
-def noise(shape: tuple[int, ...], generator: torch.Generator | list[torch.Generator],
+class NoiseDraws:
+    """A job's noise drawn in advance, handed out in order: the very numbers its generators would have given
+    when the job asked for them, as long as nothing else draws from those generators meanwhile (each ego's
+    generator serves only its jobs). Lets a job run elsewhere (job_worker.py) with the same result."""
+
+    def __init__(self, generator: torch.Generator | list[torch.Generator], shape: tuple[int, ...],
+                 count: int) -> None:
+        self.draws = [noise(shape, generator) for _ in range(count)]
+        self.taken = 0
+
+    def take(self, shape: tuple[int, ...]) -> torch.Tensor:
+        if self.taken >= len(self.draws) or tuple(self.draws[self.taken].shape) != tuple(shape):
+            raise RuntimeError("a job asked for more or other noise than was drawn for it")
+        self.taken += 1
+        return self.draws[self.taken - 1]
+
+
+def job_draws(model: "ReMoGenModel", generator: torch.Generator | list[torch.Generator], batch: int) -> NoiseDraws:
+    """Every draw a DiffusionJob of `batch` rows makes: its starting latent, then one per denoising step but the
+    last."""
+    cfg = model.cfg
+    return NoiseDraws(generator, (batch, cfg.latent_tokens, cfg.latent_dim), cfg.diffusion_steps)
+
+
+def noise(shape: tuple[int, ...], generator: torch.Generator | list[torch.Generator] | NoiseDraws,
           device: torch.device | None = None) -> torch.Tensor:
     """Standard normal noise on `device`; with one generator per row, each row drawn from its own. Drawn from CPU
     generators whatever the device, so a seed gives the same draws on a GPU as on the CPU."""
-    if isinstance(generator, torch.Generator):
+    if isinstance(generator, NoiseDraws):
+        out = generator.take(shape)
+    elif isinstance(generator, torch.Generator):
         out = torch.randn(shape, generator=generator)
     else:
         out = torch.cat([torch.randn((1,) + tuple(shape[1:]), generator=g) for g in generator])

@@ -42,10 +42,11 @@ class ReactionSession:
 
     def __init__(self, model: ReMoGenModel, text: str = "", seed: int = 0, alpha: dict | None = None,
                  guidance: float = 5.0, fwsr: bool = True, scene: Any = None, slide: bool = False,
-                 cleanup: bool = True, control: bool = True, control_config: ControlConfig | None = None) -> None:
+                 cleanup: bool = True, control: bool = True, control_config: ControlConfig | None = None,
+                 pipeline: bool = False) -> None:
         settings = EgoSettings(text=text, seed=seed, alpha=alpha, guidance=guidance, fwsr=fwsr, cleanup=cleanup)
         self._group = ReactionGroup(model, [settings], scene=scene, slide=slide, control=control,
-                                    control_config=control_config)
+                                    control_config=control_config, pipeline=pipeline)
         self._ego = self._group.egos[0]
 
     @property
@@ -69,6 +70,8 @@ class ReactionSession:
     control = _Through("_group", "Test-time control (control.py): steer each segment with cost gradients. "
                                  "From the next segment on.")
     control_config = _Through("_group")
+    pipeline = _Through("_group", "Run each segment's diffusion in a helper process (job_worker.py): the same "
+                                  "frames, less work per step here.")
     scene = _Through("_group")
     slide = _Through("_group", read_only=True)
 

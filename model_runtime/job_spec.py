@@ -1,0 +1,52 @@
+"""A segment's reverse diffusion as plain data: everything it needs, fixed when it starts.
+
+A ReactionGroup starts the diffusion of the next segment one segment ahead (group.py). Its inputs are fixed
+then (histories, cues, text, alphas, guidance, the control's targets) and its noise is drawn then too
+(`NoiseDraws`), so the job is a pure function of a `JobSpec`: built here it is spread over the frames of the
+running segment; sent to a helper process (job_worker.py) it runs there while this one plays the frames, with
+the very same result.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from .control import ControlConfig, ControlTargets, LatentSteer, SegmentCosts
+from .model import DiffusionJob, NoiseDraws, ReMoGenModel
+
+
+@dataclass
+class JobSpec:
+    """The inputs of one job, one row per ego (see DiffusionJob and ReMoGenModel.encode_contexts)."""
+    hist_n: torch.Tensor                    # (B, H, D) normalised canonical histories
+    text_emb: torch.Tensor                  # (B, text_dim)
+    partner: torch.Tensor                   # (B, W, 22, 3) canonical cue frames
+    present: torch.Tensor                   # (B, W) which cue frames are there
+    occupancy: torch.Tensor | None          # (B, R, R, R) ego-local occupancy, None without a scene
+    goal: torch.Tensor | None               # (B, 3) canonical goals, None without any
+    has_goal: torch.Tensor | None           # (B,) which rows' goals are real, None when all are
+    alpha: list[dict]
+    guidance: list[float]
+    noise: NoiseDraws
+    targets: list[ControlTargets] | None    # test-time control of each row, None with control off
+    control: ControlConfig | None
+
+
+def build_job(model: ReMoGenModel, spec: JobSpec) -> DiffusionJob:
+    """The DiffusionJob of a spec: its contexts encoded, its steering set up, no step taken yet."""
+    contexts = model.encode_contexts(spec.partner, spec.present, spec.occupancy, spec.goal, spec.alpha,
+                                     spec.has_goal)
+    steer, cc = None, spec.control
+    if spec.targets is not None and cc is not None:
+        steer = LatentSteer(model, spec.hist_n, SegmentCosts(model.stats, spec.hist_n, spec.targets, cc), cc)
+    return DiffusionJob(model, spec.hist_n, spec.text_emb, contexts, spec.alpha, spec.guidance, spec.noise,
+                        steer=steer, steered_steps=cc.steered_steps if cc else 0,
+                        final_steers=cc.final_steers if cc else 0)
+
+
+def run_job(model: ReMoGenModel, spec: JobSpec) -> torch.Tensor:
+    """A spec's finished latent (B, L, latent_dim), all of its steps at once."""
+    job = build_job(model, spec)
+    job.advance(job.total_steps)
+    return job.result

@@ -1,0 +1,106 @@
+"""Pipelining: each segment's diffusion runs in a helper process while the caller plays frames. The frames
+must be exactly those of a rollout without it, also when the helper fails, and the helper must take the jobs."""
+from __future__ import annotations
+
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+from model_runtime import EgoSettings, ReactionGroup, ReactionSession
+from model_runtime.fixtures import BOX_GOAL, approaching_partner, box_scene
+from model_runtime.job_worker import JobWorker, RemoteJob
+
+
+
+def frames_of(outs) -> np.ndarray:
+    """Every output of a list of EgoFrames, flat per frame, to compare bit for bit."""
+    return np.stack([np.concatenate([f.joints.ravel(), f.root.ravel(), f.local_rotations.ravel(),
+                                     f.contacts.astype(np.float32)]) for f in outs])
+
+FRAMES = 36
+
+
+def _ready(worker: JobWorker) -> JobWorker:
+    assert worker.ready.wait(60), f"the helper process did not start: {worker.problem}"
+    return worker
+
+
+def _rollout(group: ReactionGroup, frames: int = FRAMES, kill_at: int | None = None) -> tuple[np.ndarray, int]:
+    """Frames of a rollout with a partner walking up, a box scene and goals; and how many jobs ran remotely."""
+    partner, remote = approaching_partner(frames), []
+    group.reset(root_positions=[(0.6 * i, 0.0, 0.0) for i in range(len(group.egos))])
+    out = []
+    for i in range(frames):
+        if kill_at == i:
+            group._worker._proc.kill()
+        out.extend(group.step(partner=None if i % 7 == 6 else partner[i], goals=[BOX_GOAL] * len(group.egos)))
+        if isinstance(group._job, RemoteJob) and not any(group._job is r for r in remote):
+            remote.append(group._job)
+    return frames_of(out), len(remote)
+
+
+def _group(model, n: int, pipeline: bool, worker: JobWorker | None = None, **kw) -> ReactionGroup:
+    egos = [EgoSettings(text="walk to the person and wave", seed=3 + i, alpha={"hhi": 1.0, "hsi": 1.0}, **kw)
+            for i in range(n)]
+    g = ReactionGroup(model, egos, scene=box_scene())
+    if pipeline:
+        g._worker = worker
+        g.pipeline = True
+    return g
+
+
+@pytest.fixture(scope="module")
+def worker():
+    w = _ready(JobWorker())
+    yield w
+    w.close()
+
+
+@pytest.mark.parametrize("egos", [1, 2])
+def test_pipelined_frames_equal_the_unpipelined_ones_bit_for_bit(tiny_model, worker, egos):
+    plain, none_remote = _rollout(_group(tiny_model, egos, pipeline=False))
+    piped, remote = _rollout(_group(tiny_model, egos, pipeline=True, worker=worker))
+    assert none_remote == 0
+    assert remote >= FRAMES // tiny_model.cfg.future - 2, "the helper process took (almost) no jobs"
+    assert np.array_equal(plain, piped)
+
+
+def test_a_session_pipelines_through_its_group(tiny_model, worker):
+    kw = dict(text="a person walks forward", seed=5, alpha={"hhi": 0.0, "hsi": 1.0})
+    a = ReactionSession(tiny_model, scene=box_scene(), **kw)
+    b = ReactionSession(tiny_model, scene=box_scene(), **kw)
+    b._group._worker = worker
+    b.pipeline = True
+    assert b.pipeline and not a.pipeline
+    fa = [a.step(goal=BOX_GOAL) for _ in range(20)]
+    fb = [b.step(goal=BOX_GOAL) for _ in range(20)]
+    assert np.array_equal(frames_of(fa), frames_of(fb))
+
+
+def test_when_the_helper_dies_the_jobs_run_here_with_the_same_frames(tiny_model):
+    plain, _ = _rollout(_group(tiny_model, 1, pipeline=False))
+    dying = _ready(JobWorker())
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        piped, _ = _rollout(_group(tiny_model, 1, pipeline=True, worker=dying), kill_at=13)
+    assert np.array_equal(plain, piped)
+    assert dying.gone.is_set()
+    assert any("helper process failed" in str(w.message) for w in caught)
+
+
+def test_a_helper_that_cannot_start_leaves_the_jobs_here(tiny_model, monkeypatch):
+    monkeypatch.setattr(sys, "executable", "")
+    w = JobWorker()
+    assert w.gone.is_set() and not w.usable and "Python" in w.problem
+    plain, _ = _rollout(_group(tiny_model, 1, pipeline=False), frames=20)
+    piped, remote = _rollout(_group(tiny_model, 1, pipeline=True, worker=w), frames=20)
+    assert remote == 0 and np.array_equal(plain, piped)
+
+
+def test_models_the_helper_cannot_run_stay_here(tiny_model):
+    from model_runtime.job_worker import pipelinable
+    from model_runtime import load_model
+    assert pipelinable(tiny_model)
+    assert not pipelinable(load_model(config="tiny", precision="bf16"))
