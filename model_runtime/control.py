@@ -28,8 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from . import control_grad as cg
 from .distance_field import DistanceField
-from .features import ROOT_T, feature_joints
+from .features import JOINTS, ROOT_T, feature_joints
 from .joints import JOINT_INDEX, LEFT_HIP, RIGHT_HIP, SOLE_BELOW_FOOT_JOINT
 from .navigation import NavigationField
 
@@ -263,6 +264,17 @@ class ControlTargets:
     alpha_hsi: float = 0.0
 
 
+def _per_row(weight: float | torch.Tensor, dims: int) -> float | np.ndarray:
+    """A `_weight` for NumPy: one number, or one per row shaped to broadcast over `dims` trailing axes."""
+    if isinstance(weight, torch.Tensor):
+        return weight.double().numpy().reshape((-1,) + (1,) * dims)
+    return float(weight)
+
+
+def _held_np(x: np.ndarray, frames: int) -> np.ndarray:
+    return np.concatenate((x, np.repeat(x[:, -1:], frames - x.shape[1], 1)), 1)
+
+
 def _walking_distance(targets: list[ControlTargets]):
     """Canonical floor points (R, 2) -> (R,) walking distance to each row's goal, through its own field."""
     frames = [(t.to_world[0][:2, :2], t.to_world[1][:2], t.nav) for t in targets]
@@ -328,6 +340,8 @@ class SegmentCosts:
                 self.goal_xy = torch.stack([t.goal_xy for t in goals])
                 self.face_xy = torch.stack([t.face_xy if t.face_xy is not None else t.goal_xy for t in goals])
                 self.walk = _walking_distance(goals) if all(t.nav is not None for t in goals) else None
+                self._walk_frames = [(t.to_world[0][:2, :2].double().numpy(), t.to_world[1][:2].double().numpy(),
+                                      t.nav) for t in goals] if self.walk is not None else None
                 start = self.goal.of(s.of(self.before_xy))
                 self.far = (torch.linalg.vector_norm(self.goal_xy - start, dim=-1) > cfg.goal_face_distance).tolist()
 
@@ -372,6 +386,110 @@ class SegmentCosts:
         return cost
 
 
+    # ------------------------------------------------------------------ the same costs with their gradient, in NumPy
+    def _np(self) -> dict:
+        """The constant inputs of the costs as float64 NumPy arrays (built on first use)."""
+        c = getattr(self, "_np_cache", None)
+        if c is not None:
+            return c
+        n = lambda t: t.detach().double().numpy()   # noqa: E731
+        c = {"mean": n(self.stats.mean), "std": n(self.stats.std), "before": n(self.before_joints),
+             "before_xy": n(self.before_xy), "earlier": None if self.earlier_joints is None else n(self.earlier_joints),
+             "keep": None if self.keep is None else n(self.keep)}
+        if self.partner.any:
+            c["future"] = n(self.partner_future)
+            c["still"] = np.asarray(self.still, bool)
+            if self.passes.any:
+                c["away"] = n(self.away)
+        if self.scene.any:
+            if self.field is not None:
+                c["rot"], c["trans"] = n(self.rot), n(self.trans)
+            if self.goal.any:
+                c["goal_xy"], c["face_xy"] = n(self.goal_xy), n(self.face_xy)
+                c["far"] = np.asarray(self.far, bool)
+                if self._walk_frames is not None:
+                    start = c["before_xy"][self.scene.rows][self.goal.rows]
+                    c["far_walk"] = self._walk_np(start)[0]
+        self._np_cache = c
+        return c
+
+    def _walk_np(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Walking distances of canonical floor points (R, 2), one per goal row, and their gradients (R, 2)."""
+        vals, grads = np.zeros(len(xy)), np.zeros((len(xy), 2))
+        for k, (rot, trans, nav) in enumerate(self._walk_frames):
+            v, g = cg.nav_value_and_grad(nav, (xy[k] @ rot.T + trans)[None])
+            vals[k], grads[k] = v[0], g[0] @ rot
+        return vals, grads
+
+    def value_and_grad(self, feat_n: torch.Tensor) -> tuple[np.ndarray, torch.Tensor]:
+        """What __call__ gives for normalised features (B, T, D), (B,), and its gradient with respect to them
+        (B, T, D): the same sums with their derivatives written out in NumPy (control_grad.py), far cheaper than
+        autograd on ~100 tiny ops."""
+        c, cfg = self._np(), self.cfg
+        f = feat_n.detach().double().numpy() * c["std"] + c["mean"]
+        b, t = f.shape[:2]
+        joints = f[..., JOINTS].reshape(b, t, -1, 3)
+        pelvis = f[..., ROOT_T]
+        cost, g_j = cg.foot(joints, c["before"], TOES, cfg.skate_weight, cfg.floor_weight)
+        g_root = np.zeros_like(pelvis)
+        if c["keep"] is not None and c["earlier"] is not None:
+            sc, sg = cg.seam(joints, c["before"], c["earlier"])
+            diff = joints[:, 2:] - c["keep"][:, 2:]
+            cost = cost + cfg.seam_weight * sc + cfg.keep_weight * (diff * diff).sum((1, 2, 3))
+            g_j = g_j + cfg.seam_weight * sg
+            g_j[:, 2:] += 2.0 * cfg.keep_weight * diff
+        p = self.partner
+        if p.any:
+            mine, future = joints[p.rows], c["future"]
+            pc, pg = cg.partner(mine, future, cfg.partner_margin)
+            pc, pg = cfg.partner_weight * pc, cfg.partner_weight * pg
+            pr = np.zeros(mine.shape[:2] + (3,))
+            w = self.passes
+            if w.any:
+                held = _held_np(pelvis[p.rows][w.rows][..., :2], future.shape[1])
+                wc, wg = cg.passing(held, future[w.rows][..., 0, :2], c["away"], cfg.pass_clearance, cfg.pass_length)
+                pc[w.rows] += cfg.pass_weight * wc
+                gp = cfg.pass_weight * wg[:, :t]
+                gp[:, -1] += cfg.pass_weight * wg[:, t:].sum(1)
+                pr[w.rows, :, :2] += gp
+            if c["still"].any():
+                fc, fg = cg.facing(mine, future[:, -1, 0, :2])
+                pc = pc + np.where(c["still"], cfg.face_weight * fc, 0.0)
+                pg = pg + np.where(c["still"][:, None, None, None], cfg.face_weight * fg, 0.0)
+            cost[p.rows] += _per_row(self.alpha_hhi, 0) * pc
+            g_j[p.rows] += _per_row(self.alpha_hhi, 3) * pg
+            g_root[p.rows] += _per_row(self.alpha_hhi, 2) * pr
+        s = self.scene
+        if s.any:
+            mine = joints[s.rows]
+            sc, sg, sr = np.zeros(len(s.rows)), np.zeros_like(mine), np.zeros(mine.shape[:2] + (3,))
+            if self.field is not None:
+                rot = c["rot"]
+                world = np.einsum("rtjk,rik->rtji", mine, rot) + c["trans"][:, None, None]
+                val, gw = cg.field_value_and_grad(self.field, world)
+                short = np.maximum(cfg.scene_margin - val, 0.0)
+                sc = cfg.scene_weight * (short * short).sum((1, 2))
+                sg = np.einsum("rtji,rik->rtjk", cfg.scene_weight * -2.0 * short[..., None] * gw, rot)
+            g = self.goal
+            if g.any:
+                walk_end = self._walk_np if self._walk_frames is not None else None
+                gc, gg = cg.goal(pelvis[s.rows][g.rows], c["before_xy"][s.rows][g.rows], c["goal_xy"], cfg,
+                                 c.get("far_walk"), walk_end)
+                if c["far"].any():
+                    fc, fg = cg.facing(mine[g.rows], c["face_xy"])
+                    gc = gc + np.where(c["far"], cfg.goal_face_weight * fc, 0.0)
+                    sg[g.rows] += np.where(c["far"][:, None, None, None], cfg.goal_face_weight * fg, 0.0)
+                sc[g.rows] += gc
+                sr[g.rows] += gg
+            cost[s.rows] += _per_row(self.alpha_hsi, 0) * sc
+            g_j[s.rows] += _per_row(self.alpha_hsi, 3) * sg
+            g_root[s.rows] += _per_row(self.alpha_hsi, 2) * sr
+        grad = np.zeros_like(f)
+        grad[..., JOINTS] = g_j.reshape(b, t, -1)
+        grad[..., ROOT_T] += g_root
+        return cost, torch.from_numpy((grad * c["std"]).astype(np.float32))
+
+
 class LatentSteer:
     """Moves predicted clean latents down the gradients of their segments' costs: one decoder pass each way
     for the whole batch (a group of egos). Rows do not mix (the decoder treats them apart), so the gradient
@@ -385,12 +503,15 @@ class LatentSteer:
     def __call__(self, x0: torch.Tensor) -> torch.Tensor:
         with torch.enable_grad():
             z = x0.detach().clone().requires_grad_(True)
-            cost = self.costs(self.model.decode(self.hist, z))
+            decoded = self.model.decode(self.hist, z)
+            cost, d_cost = self.costs.value_and_grad(decoded)
             # a row costing (almost) nothing is left as it is; with none left, skip the backward pass too
-            rows = cost.detach().double() >= self.cfg.negligible_cost
-            if not cost.requires_grad or not bool(rows.any()):
+            rows = torch.from_numpy(cost >= self.cfg.negligible_cost)
+            if not bool(rows.any()):
                 return x0      # nothing to correct: skip the backward pass (most of a steering step's time)
-            (grad,) = torch.autograd.grad(cost.sum() if bool(rows.all()) else cost[rows].sum(), z)
+            if not bool(rows.all()):
+                d_cost[~rows] = 0.0
+            (grad,) = torch.autograd.grad(decoded, z, grad_outputs=d_cost)
         if x0.shape[0] == 1:
             return self._moved(x0, grad)
         norm = grad.flatten(1).norm(dim=1)

@@ -63,6 +63,7 @@ class DistanceField:
                                                                                              reach)
         # grid_sample reads (N, C, D, H, W) and takes points as (W, H, D): store [x, y, z] and flip the points
         self._volume = torch.from_numpy(sdf)[None, None]
+        self._volume_np, self._origin_np = sdf, np.asarray(self.origin, np.float64)   # control_grad.py reads these
         self._size = torch.tensor(occ.shape[::-1], dtype=torch.float32)
 
     def __call__(self, points: torch.Tensor) -> torch.Tensor:

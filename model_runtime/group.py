@@ -88,6 +88,15 @@ class ReactionGroup:
         if self._pipeline and self._worker is None and pipelinable(self.model):
             self._worker = shared_worker()
 
+    def helper_ready(self, timeout: float = 0.0) -> bool:
+        """Whether pipelined jobs now run in the helper process, waiting up to `timeout` seconds for its start
+        (False without pipelining, or when the helper cannot be used: jobs then run here)."""
+        worker = self._worker
+        if not self._pipeline or worker is None:
+            return False
+        worker.ready.wait(timeout)
+        return worker.usable
+
     # ------------------------------------------------------------------ reset
     def reset(self, root_positions: Sequence | None = None, yaws: Sequence[float] | None = None,
               frames: Sequence[EgoFrame | None] | None = None) -> None:

@@ -75,6 +75,10 @@ class ReactionSession:
     scene = _Through("_group")
     slide = _Through("_group", read_only=True)
 
+    def helper_ready(self, timeout: float = 0.0) -> bool:
+        """Whether pipelined jobs now run in the helper process, waiting up to `timeout` s (ReactionGroup)."""
+        return self._group.helper_ready(timeout)
+
     # ------------------------------------------------------------------ rollout
     def reset(self, root_position: Sequence[float] = (0.0, 0.0, 0.0), yaw: float = 0.0,
               frame: EgoFrame | None = None) -> None:

@@ -116,6 +116,18 @@ def settings_from_prefs() -> tuple[str, int]:
     return path, threads
 
 
+HELPER_ENV = "REMOGEN_HELPER_PROCESS"   # "0": no helper process (where preferences are not at hand)
+
+
+def use_helper_process() -> bool:
+    """Whether runs pipeline their diffusion through the runtime's helper process (the preference, default on)."""
+    from .preferences import get_prefs
+    prefs = get_prefs()
+    if prefs is not None:
+        return bool(prefs.helper_process)
+    return os.environ.get(HELPER_ENV, "1") != "0"
+
+
 def get_model(path: str | None = None, threads: int | None = None) -> Any:
     """The model for the current preferences, loaded once and reused while the file is unchanged."""
     if path is None or threads is None:

@@ -1,12 +1,14 @@
 """Benchmark of the extension under the `bpy` module; prints one JSON line per measurement.
 
-    python -m remogen_blender.bench [--model PATH | --config default] [--frames 300] [--threads 1]
+    python -m remogen_blender.bench [--model PATH | --config default] [--frames 300] [--threads 1] [--no-helper]
 
 - live_tick_ms: one model frame of the live path (read the partner, check/sample the scene grid, step the
   session, interpolate, write the ego pose), timed around FrameDriver.update(); the scene's own
   evaluation (frame_set) is timed separately as frame_set_ms.
 - bake_model_fps: model frames per second of a headless bake (frame_set per model frame + keying).
 - voxelise_s: extracting the evaluated triangles of a ~100k-triangle collection and building the grid.
+Runs as the extension does by default, with each segment's diffusion in the runtime's helper process (timed
+once it has started); --no-helper runs it in Blender's process, as with that preference off.
 Targets: live tick p50 <= 8 ms with the default model, bake >= 150 model frames/s, voxelisation of
 100k triangles <= 2 s.
 """
@@ -99,6 +101,8 @@ def run(args: argparse.Namespace) -> None:
 
         # live tick: one model frame per update(), the scene moved to that time first (not timed in the tick)
         driver = FrameDriver(scene, model=model)
+        # timed once the diffusion helper process runs, as it does a second or two into a session
+        common["helper_process"] = driver.group.helper_ready(timeout=60.0)
         fps = scene_fps(scene)
         ticks, fsets = [], []
         warm = 24
@@ -135,7 +139,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=300, help="model frames timed for the live tick and bake")
     ap.add_argument("--threads", type=int, default=1, help="torch threads")
     ap.add_argument("--triangles", type=int, default=100_000, help="scene size for the voxelisation")
-    run(ap.parse_args(argv))
+    ap.add_argument("--no-helper", action="store_true",
+                    help="run the diffusion in Blender's process (no helper process), as with the preference off")
+    args = ap.parse_args(argv)
+    if args.no_helper:
+        from ._runtime import HELPER_ENV
+        os.environ[HELPER_ENV] = "0"
+    run(args)
     return 0
 
 

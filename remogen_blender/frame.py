@@ -24,7 +24,7 @@ import bpy
 import numpy as np
 
 from . import rig
-from ._runtime import UserError, api, get_model, runtime, torch_error
+from ._runtime import UserError, api, get_model, runtime, torch_error, use_helper_process
 from .properties import GUIDANCE_MAX
 from .scene import SceneCache
 
@@ -121,7 +121,7 @@ class FrameDriver:
         self.group = rt.ReactionGroup(
             self.model, [rt.EgoSettings(text=src.text, seed=src.seed, alpha=_alpha(src), guidance=_guidance(src),
                                         fwsr=src.use_fwsr, cleanup=st.use_foot_lock) for src in self._sources(st)],
-            scene=None, control=st.use_control)
+            scene=None, control=st.use_control, pipeline=use_helper_process())
         root, yaw = (self.writer or self.target).start_pose()
         starts = [(root, yaw)] + [e.writer.start_pose() for e in self.others]
         self.group.reset(root_positions=[r for r, _ in starts], yaws=[y for _, y in starts])

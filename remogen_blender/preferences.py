@@ -1,6 +1,7 @@
-"""Add-on preferences: model file, SMPL-X model folder, CPU threads, and installing PyTorch."""
+"""Add-on preferences: model file, SMPL-X model folder, CPU threads, the diffusion helper process, and installing
+PyTorch."""
 import bpy
-from bpy.props import IntProperty, StringProperty
+from bpy.props import BoolProperty, IntProperty, StringProperty
 
 from . import _runtime, deps
 
@@ -29,6 +30,11 @@ class RemogenPreferences(bpy.types.AddonPreferences):
         description="Threads PyTorch may use. 1 is fastest for the default model: PyTorch's threads spin "
                     "against Blender's own (measured 200x slower with 2 on a busy 2-core machine). "
                     "0 keeps PyTorch's own choice")
+    helper_process: BoolProperty(
+        name="Diffusion in a helper process", default=True,
+        description="Run each segment's diffusion in a second Python process while Blender plays frames: the "
+                    "same motion, a fraction of the work per frame on Blender's thread (uses a second CPU core; "
+                    "starts in a second or two, meanwhile it runs in Blender)")
     torch_requirement: StringProperty(
         name="PyTorch requirement", default=deps.DEFAULT_REQUIREMENT,
         description="What 'Install PyTorch' asks pip for")
@@ -41,6 +47,7 @@ class RemogenPreferences(bpy.types.AddonPreferences):
         layout.prop(self, "model_file")
         layout.prop(self, "smplx_folder")
         layout.prop(self, "cpu_threads")
+        layout.prop(self, "helper_process")
         box = layout.box()
         err = _runtime.torch_error()
         if err:
