@@ -13,6 +13,12 @@ ReactionGroup and, interleaved tick by tick in the same run, N separate Reaction
 after another (row mode "separateN"); the group row also gives p50 and p99 of group / separate. Weights
 are random unless --model is given: speed does not depend on their values.
 
+--pipeline runs each segment's diffusion in the runtime's helper process (job_worker.py; timed once it has
+started), as the Blender extension does by default: the frames are the same, the caller's thread does only the
+frames' own work. Steps still come back to back, so a step that starts a segment waits for the helper whenever
+it is still on the previous job; --pace S instead steps once every S seconds of wall time, as a live viewport
+does (0.1 s: one model frame at real time).
+
 "model" times the networks alone, the work the paper's per-frame latency counts: at each segment start a full
 reverse diffusion (guidance 5, both Meta-Interaction Modules) and its decode, and every frame an FWSR
 refinement and its decode; no test-time control, cleanup, kinematics or scene voxelisation. It is the one mode
@@ -40,22 +46,42 @@ from .session import ReactionSession
 BEST_THREADS = {"tiny": 1, "default": 1, "paper": 2}  # measured on a 2-core CPU
 
 
-def run_case(model, mode: str, frames: int, warmup: int, scene) -> dict:
+class _Clock:
+    """Back to back (pace 0), or one tick every `pace` seconds of wall time."""
+
+    def __init__(self, pace: float) -> None:
+        self.pace, self.next = pace, time.perf_counter()
+
+    def wait(self) -> None:
+        if self.pace > 0.0:
+            self.next += self.pace
+            time.sleep(max(0.0, self.next - time.perf_counter()))
+
+
+def _started(runner, pipeline: bool) -> bool:
+    """Whether the helper process takes the jobs (waits for its start, as a live session is a second in)."""
+    return bool(pipeline and runner.helper_ready(timeout=60.0))
+
+
+def run_case(model, mode: str, frames: int, warmup: int, scene, pipeline: bool = False, pace: float = 0.0) -> dict:
     session = ReactionSession(model, text="walk to the person and wave", seed=0,
                               alpha={"hhi": 1.0, "hsi": 1.0}, guidance=5.0,
                               fwsr=mode.startswith("fwsr"), scene=scene, slide=(mode == "slide"),
-                              cleanup=(mode != "fwsr-raw"), control=mode not in ("fwsr-raw", "fwsr-nocontrol"))
+                              cleanup=(mode != "fwsr-raw"), control=mode not in ("fwsr-raw", "fwsr-nocontrol"),
+                              pipeline=pipeline)
+    helper = _started(session, pipeline)
     session.reset(root_position=(0.0, 0.0, 0.0), yaw=0.0)
     partner = approaching_partner(warmup + frames)
     goal = BOX_GOAL
-    times = []
+    times, clock = [], _Clock(pace)
     for i in range(warmup + frames):
         t0 = time.perf_counter()
         session.step(partner=partner[i], goal=goal)
         dt = (time.perf_counter() - t0) * 1000.0
         if i >= warmup:
             times.append(dt)
-    return _percentiles(times)
+        clock.wait()
+    return {**_percentiles(times), "helper_process": helper}
 
 
 @torch.no_grad()
@@ -107,21 +133,24 @@ def _percentiles(times: list[float]) -> dict:
             "mean_ms": round(float(a.mean()), 3), "max_ms": round(float(a.max()), 3), "frames": len(a)}
 
 
-def run_group_case(model, egos: int, frames: int, warmup: int, scene) -> tuple[dict, dict]:
+def run_group_case(model, egos: int, frames: int, warmup: int, scene, pipeline: bool = False,
+                   pace: float = 0.0) -> tuple[dict, dict]:
     """Live ticks of `egos` egos in a row 1.2 m apart, the partner walking up to the middle: as one group,
     and as separate sessions stepped one after another in the same ticks. Returns (group, separate)."""
     text, alpha = "walk to the person and wave", {"hhi": 1.0, "hsi": 1.0}
     xs = [(i - (egos - 1) / 2) * 1.2 for i in range(egos)]
     goals = [(x, BOX_GOAL[1], 0.0) for x in xs]
-    group = ReactionGroup(model, [EgoSettings(text=text, seed=i, alpha=alpha) for i in range(egos)], scene=scene)
+    group = ReactionGroup(model, [EgoSettings(text=text, seed=i, alpha=alpha) for i in range(egos)], scene=scene,
+                          pipeline=pipeline)
+    helper = _started(group, pipeline)
     group.reset(root_positions=[(x, 0.0, 0.0) for x in xs], yaws=[0.0] * egos)
     sessions = []
     for i, x in enumerate(xs):
-        s = ReactionSession(model, text=text, seed=i, alpha=alpha, scene=scene)
+        s = ReactionSession(model, text=text, seed=i, alpha=alpha, scene=scene, pipeline=pipeline)
         s.reset(root_position=(x, 0.0, 0.0), yaw=0.0)
         sessions.append(s)
     partner = approaching_partner(warmup + frames)
-    together, apart = [], []
+    together, apart, clock = [], [], _Clock(pace)
     for i in range(warmup + frames):
         t0 = time.perf_counter()
         group.step(partner=partner[i], goals=goals)
@@ -132,7 +161,8 @@ def run_group_case(model, egos: int, frames: int, warmup: int, scene) -> tuple[d
         if i >= warmup:
             together.append((t1 - t0) * 1000.0)
             apart.append((t2 - t1) * 1000.0)
-    return _percentiles(together), _percentiles(apart)
+        clock.wait()
+    return {**_percentiles(together), "helper_process": helper}, {**_percentiles(apart), "helper_process": helper}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -150,6 +180,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=0, help="torch threads (0 = the measured best per config)")
     ap.add_argument("--model", default=None, help="a model file instead of random weights (its config is used)")
     ap.add_argument("--device", default="cpu", help="cpu, cuda or auto; anything but cpu runs the model mode only")
+    ap.add_argument("--pipeline", action="store_true",
+                    help="run each segment's diffusion in the helper process (as the Blender extension does)")
+    ap.add_argument("--pace", type=float, default=0.0,
+                    help="seconds of wall time per step (0.1: real time, as a live viewport); 0 = back to back")
     ap.add_argument("--precisions", default="fp32,bf16:paper,int8:paper",
                     help="precisions to run; 'bf16:paper' = bf16 for the paper config only")
     args = ap.parse_args(argv)
@@ -171,10 +205,12 @@ def main(argv: list[str] | None = None) -> int:
             model = load_model(args.model, precision=prec) if args.model else load_model(config=cfg, precision=prec)
             for mode in args.modes.split(","):
                 common = {"threads": threads, "precision": prec, "scene": scene is not None,
-                          "device": device_name(device) if mode == "model" else "cpu"}
+                          "device": device_name(device) if mode == "model" else "cpu",
+                          "pipeline": args.pipeline, "pace_s": args.pace}
                 if mode.startswith("group"):
                     egos = _group_size(mode)
-                    together, apart = run_group_case(model, egos, args.frames, args.warmup, scene)
+                    together, apart = run_group_case(model, egos, args.frames, args.warmup, scene, args.pipeline,
+                                                     args.pace)
                     ratio = {f"ratio_{k}": round(together[k] / apart[k], 3) for k in ("p50_ms", "p99_ms")}
                     found = [{"config": cfg, "mode": mode, **together, **ratio, "egos": egos, **common},
                              {"config": cfg, "mode": f"separate{egos}", **apart, "egos": egos, **common}]
@@ -183,7 +219,8 @@ def main(argv: list[str] | None = None) -> int:
                               **common}]
                 else:
                     n = args.slide_frames if mode == "slide" else args.frames
-                    found = [{"config": cfg, "mode": mode, **run_case(model, mode, n, args.warmup, scene), **common}]
+                    found = [{"config": cfg, "mode": mode,
+                              **run_case(model, mode, n, args.warmup, scene, args.pipeline, args.pace), **common}]
                 for row in found:
                     rows.append(row)
                     print(json.dumps(row), flush=True)

@@ -59,6 +59,18 @@ def test_bench_prints_all_rows(capsys):
         assert {"config", "mode", "p50_ms", "p99_ms", "frames"} <= set(r) and r["p99_ms"] >= r["p50_ms"] > 0
 
 
+def test_bench_pipelined_and_paced_rows_say_so(capsys):
+    import time
+    from model_runtime import bench
+    t0 = time.perf_counter()
+    assert bench.main(["--json", "--configs", "tiny", "--modes", "fwsr,group2", "--frames", "4", "--warmup", "2",
+                       "--precisions", "fp32", "--pipeline", "--pace", "0.05"]) == 0
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")]
+    assert [r["mode"] for r in rows] == ["fwsr", "group2", "separate2"]
+    assert all(r["pipeline"] and r["pace_s"] == 0.05 and r["helper_process"] for r in rows)
+    assert time.perf_counter() - t0 >= 2 * 6 * 0.05       # paced: 6 ticks of each case at 0.05 s
+
+
 def test_bench_model_mode_times_the_networks_and_refuses_session_modes_on_a_gpu(capsys):
     import json
     from model_runtime import bench
