@@ -212,21 +212,6 @@ def passing_away(own: np.ndarray, other: np.ndarray, before: np.ndarray | None,
     return side * left
 
 
-def passing_reaches(own: np.ndarray, other: np.ndarray, away: np.ndarray, first: int, last: int,
-                    cfg: ControlConfig) -> bool:
-    """Whether a pass in direction `away` asks anything of the frames `first`..`last` after the latest one:
-    at one of them, moving on as now, the other is within `pass_length` along the relative motion while the
-    ego is not yet `pass_clearance` aside. own, other (N, 2) as for passing_away."""
-    frames = len(own) - 1
-    rel_v = ((own[-1] - own[0]) - (other[-1] - other[0])) / frames
-    rel = own[-1] - other[-1]
-    if float(rel @ away) >= cfg.pass_clearance:
-        return False
-    along = np.array([away[1], -away[0]])
-    ends = float(rel @ along) + float(rel_v @ along) * np.array([first, last], dtype=np.float64)
-    return bool(ends.min() < cfg.pass_length and ends.max() > -cfg.pass_length)
-
-
 def _plus_where(cost: torch.Tensor, mask: list[bool], term) -> torch.Tensor:
     """cost + term() on the rows of `mask`: the plain sum when every row takes it, cost itself when none."""
     if not any(mask):

@@ -15,11 +15,11 @@ import numpy as np
 import torch
 
 from .checks import Checked, check_alpha, check_guidance, check_point, check_seed, check_text
-from .control import ControlConfig, ControlTargets, partner_future, passing_away, passing_reaches
+from .control import ControlConfig, ControlTargets, partner_future, passing_away
 from .distance_field import DistanceField
 from .errors import MAX_COORD, InputError
-from .features import (ROOT_T, ROT6D, canonical_frame, feature_joints, features_from_pose, to_canonical,
-                       world_points_to_canonical)
+from .features import (ROOT_T, ROT6D, canonical_frame, feature_joints, features_from_pose, self_consistent,
+                       to_canonical, world_points_to_canonical)
 from .footlock import FootLock
 from .navigation import NAV_CELL, FloorMap, NavigationField
 from .quat import matrix_to_quat_np
@@ -213,7 +213,9 @@ class Ego:
         return self.trail[-1][0]
 
     def canonical_history(self, hist_world: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(rot, trans, normalised (1, H, D) history) of a history in its own canonical frame."""
+        """(rot, trans, normalised (1, H, D) history) of a history in its own canonical frame, the generated frames
+        made self-consistent first (features.self_consistent)."""
+        hist_world = self_consistent(hist_world)
         rot, trans = canonical_frame(feature_joints(hist_world[0]))
         return rot, trans, self.model.stats.normalize(to_canonical(hist_world, rot, trans)).unsqueeze(0)
 
@@ -251,12 +253,6 @@ class Ego:
         away = None if paths is None else passing_away(*paths, before, cc)
         self.passing = None if away is None else (self.cue_id, away)
         return away
-
-    def passing_reaches(self, cc: ControlConfig, first: int, last: int) -> bool:
-        """Whether its pass (pass_away first) asks anything of the frames first..last from now."""
-        paths = self._paths()
-        return self.passing is not None and paths is not None and passing_reaches(*paths, self.passing[1], first,
-                                                                                   last, cc)
 
     def occupancy(self, scene: Any, rot: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
         occ = scene.sample_ego(as_transform(rot, trans), bounds=self.cfg.scene_bounds,

@@ -59,6 +59,25 @@ def features_to_pose(feat: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return rot, feat[..., ROOT_T]
 
 
+def self_consistent(frames: torch.Tensor) -> torch.Tensor:
+    """Generated frames (T, 276) made consistent the way real frames are: joints from the kinematics of their
+    rotations and pelvis, and each frame's deltas to the next from the two poses. The last frame's deltas (to a
+    frame not made yet) stay as they were.
+
+    A decoder predicts the joint channels beside the rotations, and they disagree (measured in rollouts: 1.5 cm
+    and 2 degrees of facing standing, 4.6 cm and 7 degrees walking up to a partner). Fed back as history, the
+    joints set the next segment's canonical frame while the rotations are what is shown, and the model,
+    trained on real frames where both agree, turned the body at every segment start by about that much.
+    """
+    rot, pelvis = features_to_pose(frames)
+    joints, _ = forward_kinematics(rot, pelvis)
+    out = frames.clone()
+    out[..., JOINTS] = joints.reshape(joints.shape[:-2] + (-1,))
+    if frames.shape[0] >= 2:
+        out[:-1] = features_from_pose(rot, pelvis, joints)
+    return out
+
+
 def feature_joints(feat: torch.Tensor) -> torch.Tensor:
     """(..., 276) -> the joint-position slice as (..., 22, 3)."""
     return feat[..., JOINTS].reshape(feat.shape[:-1] + (NUM_JOINTS, 3))

@@ -214,8 +214,6 @@ class ReactionGroup:
             seam = self._control_config.seam_steers if self._control else 0
             seg["steps_at"] = steps_per_frame(job.total_steps, cfg.future, job.steered_steps + job.final_steers,
                                               BOUNDARY_COST + seam * STEERED_STEP_COST)
-        if f >= 1 and self._control:
-            self._steer_playing(f)
         feats_n = [seg["future"][i, f] for i in range(len(self.egos))]
         refined = [i for i, e in enumerate(self.egos) if e.fwsr] if f >= 1 else []
         if refined:
@@ -227,34 +225,6 @@ class ReactionGroup:
         seg["f"] = f + 1
         return [to_world(self.model.stats.denormalize(feat).unsqueeze(0), e.seg["rot"], e.seg["trans"])[0]
                 for e, feat in zip(self.egos, feats_n)]
-
-    def _steer_playing(self, f: int) -> None:
-        """An ego passing someone also steers the segment it is playing, a step each frame with the latest cue:
-        the segment that sees the other coming is otherwise decided a segment ahead, too late to step aside.
-        With the alphas the segment was made with: a slider moved since acts from the next segment on."""
-        seg, cc = self._seg, self._control_config
-        field, floor = (self._distance_field, self._floor_map) if self._scene is not None else (None, None)
-        rows, targets = [], []
-        last = self.cfg.future - 1 + int(cc.look_ahead) - f      # the segment's frames to play and its look-ahead
-        for i, e in enumerate(self.egos):
-            alpha = e.seg["alpha"]
-            if alpha["hhi"] > 0.0 and e.pass_away(cc) is not None and e.passing_reaches(cc, 0, last):
-                t = e.control_targets(e.seg["rot"], e.seg["trans"], -f, field, cc, alpha, floor)
-                if t.pass_away is not None:
-                    rows.append(i)
-                    targets.append(t)
-        if not rows:
-            return
-        hist_n = seg["hist_n"][rows]
-        steer = LatentSteer(self.model, hist_n, SegmentCosts(self.model.stats, hist_n, targets, cc), cc)
-        z0 = seg["z0"].clone()
-        z0[rows] = steer(seg["z0"][rows])
-        seg["z0"] = z0
-        plain = [i for i in rows if not self.egos[i].fwsr]    # FWSR decodes the steered latent itself
-        if plain:
-            future = seg["future"].clone()
-            future[plain] = self.model.decode(seg["hist_n"][plain], z0[plain])
-            seg["future"] = future
 
     def _refine(self, rows: list[int], f: int) -> list[torch.Tensor]:
         """FWSR for frame f of the segment, for the egos in `rows`: their normalised canonical features."""

@@ -4,7 +4,7 @@ import torch
 
 from model_runtime import EgoFrame, InputError, ReactionSession
 from model_runtime.bench import approaching_partner
-from model_runtime.features import canonical_frame, feature_joints, to_canonical, to_world
+from model_runtime.features import canonical_frame, feature_joints, self_consistent, to_canonical, to_world
 
 
 def rollout(model, n=20, seed=0, **kw):
@@ -66,6 +66,7 @@ def test_fwsr_off_emits_exactly_the_segment_decodes(tiny_model):
     with torch.inference_mode():
         from model_runtime.model import Contexts
         for _ in range(2):
+            hist_world = self_consistent(hist_world)      # generated history as real frames are (features.py)
             rot, trans = canonical_frame(feature_joints(hist_world[0]))
             hist_n = m.stats.normalize(to_canonical(hist_world, rot, trans)).unsqueeze(0)
             z0 = m.sample_latent(hist_n, te, Contexts({}), {"hhi": 0.0, "hsi": 0.0}, 5.0, gen)
