@@ -47,11 +47,14 @@ _PACKAGE = __name__.rpartition(".")[0]          # this package as the caller imp
 _PACKAGE_DIR = str(Path(__file__).resolve().parent)
 CHILD_PACKAGE = "model_runtime"                   # the name the helper imports this package under
 
-# The helper's first lines: take the result channel out of stdout (so a stray print cannot corrupt it),
+# The helper's first lines: ignore Ctrl-C (the caller decides when it ends: it ends when the caller's end of its
+# pipe closes), take the result channel out of stdout (so a stray print cannot corrupt it),
 # see the caller's import path (PyTorch may live in a folder only the caller added), import this package
-# from its folder under CHILD_PACKAGE, and serve.
+# from its folder under CHILD_PACKAGE, and serve; then leave without the interpreter's shutdown (its reader thread
+# may still hold stdin, which a normal shutdown reports as a fatal error on the shared stderr).
 _BOOT = """
-import importlib.util, os, sys
+import importlib.util, os, signal, sys
+signal.signal(signal.SIGINT, signal.SIG_IGN)
 out = os.fdopen(os.dup(sys.stdout.fileno()), "wb", buffering=0)
 os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
 extra = [p for p in os.environ.get("REMOGEN_WORKER_PATH", "").split(os.pathsep) if p and p not in sys.path]
@@ -64,6 +67,7 @@ sys.modules["model_runtime"] = module
 spec.loader.exec_module(module)
 from model_runtime.job_worker import serve
 serve(sys.stdin.buffer, out, parent)
+os._exit(0)
 """
 
 
@@ -73,7 +77,10 @@ class WorkerError(RuntimeError):
 
 # ---------------------------------------------------------------------------------------------- framing
 def _write(stream: BinaryIO, payload: bytes) -> None:
-    stream.write(_HEADER.pack(len(payload)) + payload)
+    data = memoryview(_HEADER.pack(len(payload)) + payload)
+    while data:                       # an unbuffered pipe may take part of it at a time
+        n = stream.write(data)
+        data = data[len(data) if n is None else n:]
     stream.flush()
 
 
@@ -128,7 +135,8 @@ def serve(inp: BinaryIO, out: BinaryIO, parent: str) -> None:
     threading.Thread(target=reader, daemon=True).start()
     models: dict = {}
     objects: dict = {}
-    _write(out, pickle.dumps(("ready",)))
+    if not _reply(out, ("ready",)):
+        return
     while True:
         data = inbox.get()
         if data is None:
@@ -155,7 +163,17 @@ def serve(inp: BinaryIO, out: BinaryIO, parent: str) -> None:
                 reply = ("result", job_id, latent)
             except Exception as exc:   # reported to the caller, which runs the job itself
                 reply = ("error", job_id, f"{type(exc).__name__}: {exc}")
-            _write(out, pickle.dumps(reply))
+            if not _reply(out, reply):
+                return
+
+
+def _reply(out: BinaryIO, msg: tuple) -> bool:
+    """Send a message to the caller; False when the caller is gone (it exited: so does the helper, quietly)."""
+    try:
+        _write(out, pickle.dumps(msg))
+        return True
+    except (BrokenPipeError, OSError, ValueError):
+        return False
 
 
 # ---------------------------------------------------------------------------------------------- the caller
@@ -203,8 +221,11 @@ class JobWorker:
             return
         env = dict(os.environ, REMOGEN_WORKER_PATH=os.pathsep.join(p for p in sys.path if p))
         try:
+            # its own session (POSIX) or process group (Windows): a Ctrl-C in the caller's terminal is the caller's
+            detach = ({"creationflags": subprocess.CREATE_NEW_PROCESS_GROUP} if sys.platform == "win32"
+                      else {"start_new_session": True})
             self._proc = subprocess.Popen([exe, "-c", _BOOT, _PACKAGE_DIR, _PACKAGE], stdin=subprocess.PIPE,
-                                          stdout=subprocess.PIPE, env=env)
+                                          stdout=subprocess.PIPE, env=env, bufsize=0, **detach)
         except OSError as exc:
             self._fail(f"it could not start ({exc})")
             return
@@ -222,10 +243,10 @@ class JobWorker:
                 _write(stdin, data)
             except (OSError, ValueError):
                 self._fail("it stopped reading")
-                return
+                break
         try:
             stdin.close()
-        except OSError:
+        except (OSError, ValueError):
             pass
 
     def _read_loop(self) -> None:
