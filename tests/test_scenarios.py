@@ -44,7 +44,7 @@ def test_goal_past_obstacles_is_reached_without_walking_into_them(model):
     assert on["reach_percent"] >= 90.0, on
     assert on["settle_mean_m"] <= 0.3, on
     assert on["inside_obstacle_percent"] <= 1.0, on
-    # its seam ratio (1.32 on the 48 val episodes) misses the 1.3 target: README lists it as missed
+    assert on["seam_ratio"] <= 1.3, on
 
 
 def test_partner_crossing_clearance_is_better_with_the_partner_module(model):
@@ -52,6 +52,7 @@ def test_partner_crossing_clearance_is_better_with_the_partner_module(model):
     on, off = s["alpha=1"], s["alpha=0"]
     assert on["percent_under_10cm"] < off["percent_under_10cm"], (on, off)
     assert on["min_clearance_mean_m"] > off["min_clearance_mean_m"] + 0.1, (on, off)
+    assert on["seam_ratio"] <= 1.3, on
 
 
 def test_approach_from_any_direction_ends_facing_the_partner(model):
@@ -59,8 +60,16 @@ def test_approach_from_any_direction_ends_facing_the_partner(model):
     assert on["facing_error_mean_deg"] <= 30.0, on
     assert on["percent_within_45deg"] >= 85.0, on
     assert on["min_clearance_min_m"] >= 0.2, on
+    assert on["seam_ratio"] <= 1.3, on
 
 
 def test_walking_forward_joins_its_segments_without_a_pop(model):
     on = family(model, "walk_forward")["alpha=1"]
+    assert on["seam_ratio"] <= 1.3, on
+
+
+def test_standing_keeps_its_feet_planted_and_its_segments_joined(model):
+    """Standing drift (0.33 m a minute on the 48 val episodes) misses its 0.3 target: README lists it as missed."""
+    on = family(model, "stand")["alpha=1"]
+    assert on["planted_toe_cm_s"] <= 1.0, on
     assert on["seam_ratio"] <= 1.3, on
