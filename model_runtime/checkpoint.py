@@ -130,10 +130,8 @@ def load_model(path: str | os.PathLike | None = None, *, config: "str | ModelCon
         raise ModelFileError(f"no shipped weights at {p}; train them (python -m model_runtime.train) "
                              "or pass load_model(config='default') for an untrained model")
     payload = _read_payload(p)
-    cfg = ModelConfig.from_dict(payload["config"])
-    model = ReMoGenModel(cfg)
     try:
-        model.load_state_dict(payload["state_dict"], strict=True)
+        model = model_from_payload(payload)
     except RuntimeError as exc:
         first = str(exc).strip().splitlines()[0]
         raise ModelFileError(f"{p} does not match its own config ({first[:160]}); the file is damaged "

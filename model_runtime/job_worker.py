@@ -147,8 +147,8 @@ def serve(inp: BinaryIO, out: BinaryIO, parent: str) -> None:
             return
         if kind == "model":
             _, key, payload = msg
-            models[key] = model_from_payload(torch.load(io.BytesIO(payload), map_location="cpu",
-                                                        weights_only=True)).eval()
+            state = torch.load(io.BytesIO(payload), weights_only=True, map_location="cpu")
+            models[key] = model_from_payload(state).eval()
         elif kind == "forget_model":
             models.pop(msg[1], None)
         elif kind == "object":
@@ -373,10 +373,6 @@ class RemoteJob:
 
     def advance(self, steps: int) -> None:
         """Nothing to do in this process: the helper runs the whole job."""
-
-    @property
-    def done(self) -> bool:
-        return self._result is not None
 
     @property
     def result(self) -> torch.Tensor:
