@@ -485,10 +485,18 @@ class LatentSteer:
         self.model, self.costs, self.cfg, self.hist = model, costs, cfg, hist_n
         self.step_size = cfg.step_size if step_size is None else step_size
 
-    def __call__(self, x0: torch.Tensor) -> torch.Tensor:
+    @staticmethod
+    def decode_with_grad(model, hist_n: torch.Tensor, x0: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(latent that takes gradients, its decoded segment): a steering step's forward pass, which a caller
+        that also needs the decoded segment (to build the costs from it) can hand to the first step."""
         with torch.enable_grad():
             z = x0.detach().clone().requires_grad_(True)
-            decoded = self.model.decode(self.hist, z)
+            return z, model.decode(hist_n, z)
+
+    def __call__(self, x0: torch.Tensor, forward: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
+        """One step from x0; `forward`: decode_with_grad(model, hist, x0) already computed, else done here."""
+        z, decoded = forward if forward is not None else self.decode_with_grad(self.model, self.hist, x0)
+        with torch.enable_grad():
             cost, d_cost = self.costs.value_and_grad(decoded)
             # a row costing (almost) nothing is left as it is; with none left, skip the backward pass too
             rows = torch.from_numpy(cost >= self.cfg.negligible_cost)

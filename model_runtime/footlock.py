@@ -12,6 +12,7 @@ leg's reach the contact is released early.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,23 +36,33 @@ class FootLockConfig:
     max_miss: float = 0.04          # m: a planted toe further than this out of the leg's reach is let go
 
 
+# 3-vector helpers: np.cross and np.linalg.norm cost tens of microseconds on one small vector (axis handling),
+# and the IK runs on every output frame; these compute the very same floating-point expressions.
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.array((a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]))
+
+
+def _norm(v: np.ndarray) -> float:
+    return math.sqrt(float(v @ v))
+
+
 def _rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """The smallest rotation taking direction u to direction v (3x3)."""
-    u = u / max(np.linalg.norm(u), 1e-12)
-    v = v / max(np.linalg.norm(v), 1e-12)
-    axis = np.cross(u, v)
-    s, c = np.linalg.norm(axis), float(np.clip(u @ v, -1.0, 1.0))
+    u = u / max(_norm(u), 1e-12)
+    v = v / max(_norm(v), 1e-12)
+    axis = _cross(u, v)
+    s, c = _norm(axis), min(1.0, max(-1.0, float(u @ v)))
     if s < 1e-9:
         if c > 0:
             return np.eye(3)
-        perp = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
-        return _axis_angle(perp / np.linalg.norm(perp), np.pi)
+        perp = _cross(u, np.array([1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.array([0.0, 1.0, 0.0]))
+        return _axis_angle(perp / _norm(perp), np.pi)
     return _axis_angle(axis / s, np.arctan2(s, c))
 
 
 def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
     k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
 
 
 def global_rotations(local_rot: np.ndarray) -> np.ndarray:
@@ -67,9 +78,9 @@ def solve_leg(glob: np.ndarray, joints: np.ndarray, leg: tuple[int, int, int, in
     leg goes; further out it returns False and changes nothing."""
     hip, knee, ankle, _ = leg
     h = joints[hip]
-    l1 = np.linalg.norm(glob[hip] @ _OFFSETS[knee])
-    l2 = np.linalg.norm(glob[knee] @ _OFFSETS[ankle])
-    d_true = float(np.linalg.norm(target - h))
+    l1 = _norm(glob[hip] @ _OFFSETS[knee])
+    l2 = _norm(glob[knee] @ _OFFSETS[ankle])
+    d_true = float(_norm(target - h))
     d = min(d_true, reach * (l1 + l2))
     if d_true - d > max_miss or d < abs(l1 - l2) + 1e-4:
         return False
@@ -77,12 +88,12 @@ def solve_leg(glob: np.ndarray, joints: np.ndarray, leg: tuple[int, int, int, in
     a = k + glob[knee] @ _OFFSETS[ankle]
     # 1) bend the knee so the hip-ankle distance becomes d (law of cosines), about the leg plane's normal
     upper, lower = k - h, a - k
-    normal = np.cross(upper, lower)
-    if np.linalg.norm(normal) < 1e-9:           # a straight leg: bend about the hip's sideways axis
+    normal = _cross(upper, lower)
+    if _norm(normal) < 1e-9:           # a straight leg: bend about the hip's sideways axis
         normal = glob[hip][:, 0]
-    normal = normal / np.linalg.norm(normal)
-    cur = np.arccos(np.clip((upper @ lower) / (l1 * l2), -1.0, 1.0))        # angle between the bones
-    want = np.arccos(np.clip((d * d - l1 * l1 - l2 * l2) / (2 * l1 * l2), -1.0, 1.0))
+    normal = normal / _norm(normal)
+    cur = math.acos(min(1.0, max(-1.0, float(upper @ lower) / (l1 * l2))))        # angle between the bones
+    want = math.acos(min(1.0, max(-1.0, (d * d - l1 * l1 - l2 * l2) / (2 * l1 * l2))))
     bend = _axis_angle(normal, want - cur)
     glob[knee] = bend @ glob[knee]
     a = k + glob[knee] @ _OFFSETS[ankle]

@@ -11,7 +11,10 @@ while FWSR reacts to the partner every frame and switching FWSR on or off acts o
 small torch ops, GIL contention made the job finish later than spreading it, p99 38 ms vs 9 ms.)
 With `pipeline=True` each job after the first runs instead in a helper process (job_worker.py) while
 this one plays the segment's frames, and is collected at the segment's start: the same latent, so the
-same motion, with only the frames' own work left on the caller's thread.
+same motion, with only the frames' own work left on the caller's thread. When the helper is ahead (the
+job was done before it was asked for, as in a viewport playing at real time), the next job's inputs are
+fixed at the segment's start as always but it is built and sent at the following step, so the start of a
+segment (seam steering, decoding) and the sending of a job do not add up in one step.
 With FWSR on, every frame f >= 1 of a segment re-decodes a latent refined from the latest history and
 partner frames (Algorithm 1), so reactions show up within a frame rather than at the next segment.
 `slide=True` is the paper's ablation: a full diffusion every frame. Every frame is checked before it is
@@ -30,6 +33,7 @@ partner).
 """
 from __future__ import annotations
 
+import copy
 from collections import deque
 from typing import Any, Sequence
 
@@ -118,6 +122,7 @@ class ReactionGroup:
         self._partner: deque = deque([None] * w, maxlen=w)
         self._seg: dict | None = None
         self._job = None
+        self._pending: tuple | None = None    # a job whose inputs are fixed, to build at the next step
         self._index = 0
 
     def _per_ego(self, name: str, values: Sequence | None, default: Any) -> list:
@@ -187,10 +192,10 @@ class ReactionGroup:
     def _snapshot(self) -> tuple:
         seg = None if self._seg is None else dict(self._seg)
         job = None if self._job is None else (self._job, self._job.snapshot())
-        return list(self._partner), seg, job, [e.snapshot() for e in self.egos]
+        return list(self._partner), seg, job, [e.snapshot() for e in self.egos], self._pending
 
     def _restore(self, snap: tuple) -> None:
-        partner, self._seg, job, egos = snap
+        partner, self._seg, job, egos, self._pending = snap
         self._partner.clear()
         self._partner.extend(partner)
         for e, s in zip(self.egos, egos):
@@ -202,18 +207,26 @@ class ReactionGroup:
 
     def _segment_frames(self) -> list[torch.Tensor]:
         seg, cfg = self._seg, self.cfg
+        if self._pending is not None:
+            self._build_pending()
         if seg is None or seg["f"] >= cfg.future:
             job = self._finish_job()
             seg = self._seg = self._start_segment(job)
             predicted = [to_world(self.model.stats.denormalize(seg["future"][i, -cfg.history:]),
                                   e.seg["rot"], e.seg["trans"]) for i, e in enumerate(self.egos)]
-            self._job = self._new_job(predicted, lead=cfg.future, ahead=True)
+            if isinstance(job, RemoteJob) and job.was_ready and cfg.future > 1:
+                self._pending = self._fix_inputs(predicted, lead=cfg.future)
+            else:
+                self._job = self._new_job(predicted, lead=cfg.future, ahead=True)
         f = seg["f"]
         if f == 0:
             job = self._job
-            seam = self._control_config.seam_steers if self._control else 0
-            seg["steps_at"] = steps_per_frame(job.total_steps, cfg.future, job.steered_steps + job.final_steers,
-                                              BOUNDARY_COST + seam * STEERED_STEP_COST)
+            if job is None:          # built at the next step, in the helper process: nothing to spread here
+                seg["steps_at"] = (0,) * cfg.future
+            else:
+                seam = self._control_config.seam_steers if self._control else 0
+                seg["steps_at"] = steps_per_frame(job.total_steps, cfg.future, job.steered_steps + job.final_steers,
+                                                  BOUNDARY_COST + seam * STEERED_STEP_COST)
         feats_n = [seg["future"][i, f] for i in range(len(self.egos))]
         refined = [i for i, e in enumerate(self.egos) if e.fwsr] if f >= 1 else []
         if refined:
@@ -221,7 +234,8 @@ class ReactionGroup:
                 feats_n[k] = feat
         for e, feat in zip(self.egos, feats_n):
             e.seg["emitted"] = torch.cat((e.seg["emitted"], feat.unsqueeze(0)), 0)
-        self._job.advance(seg["steps_at"][f])
+        if self._job is not None:
+            self._job.advance(seg["steps_at"][f])
         seg["f"] = f + 1
         return [to_world(self.model.stats.denormalize(feat).unsqueeze(0), e.seg["rot"], e.seg["trans"])[0]
                 for e, feat in zip(self.egos, feats_n)]
@@ -270,13 +284,40 @@ class ReactionGroup:
         if self._control and cc.seam_steers and self.cfg.history >= 2:
             # the latent was made for a predicted history: join it to the real one without a jump, still
             # under the same costs (its first frame plays now)
-            made = feature_joints(self.model.stats.denormalize(self.model.decode(hist_n, z0)))
+            forward = LatentSteer.decode_with_grad(self.model, hist_n, z0)   # also the first step's forward
+            made = feature_joints(self.model.stats.denormalize(forward[1].detach()))
             steer = self._steer(hist_n, canon, lead=0, keep=made, step_size=cc.seam_step_size, alphas=job.alpha)
-            for _ in range(cc.seam_steers):
-                z0 = steer(z0)
+            for k in range(cc.seam_steers):
+                z0 = steer(z0, forward if k == 0 else None)
         for e, (rot, trans, h), alpha in zip(self.egos, canon, job.alpha):
             e.seg = {"rot": rot, "trans": trans, "emitted": h[0], "alpha": alpha}
         return {"hist_n": hist_n, "z0": z0, "future": self.model.decode(hist_n, z0), "f": 0}
+
+    def _fix_inputs(self, hist_worlds: list[torch.Tensor], lead: int) -> tuple:
+        """Everything `_new_job` reads, as it is now, for `_build_pending` to build that very job at a later
+        step: each ego as a shallow copy (its settings, cue, goal, passing state; its trail copied, as that one
+        grows in place), the scene and the control settings. The noise is drawn at the build, from the egos'
+        own generators, which nothing else draws from meanwhile."""
+        views = []
+        for e in self.egos:
+            v = copy.copy(e)
+            v.trail = deque(e.trail, maxlen=e.trail.maxlen)
+            views.append(v)
+        return hist_worlds, lead, views, self._scene, self._control, self._control_config
+
+    def _build_pending(self) -> None:
+        """Build and send the job whose inputs `_fix_inputs` fixed: the very job it would have been then."""
+        hist_worlds, lead, views, scene, control, cc = self._pending
+        views = [copy.copy(v) for v in views]      # a failed step restores the pending job untouched
+        live = self.egos, self._scene, self._control, self._control_config
+        self.egos, self._scene, self._control, self._control_config = views, scene, control, cc
+        try:
+            job = self._new_job(hist_worlds, lead, ahead=True)
+        finally:
+            self.egos, self._scene, self._control, self._control_config = live
+        for e, v in zip(self.egos, views):      # what building it changed on the egos
+            e.passing, e._nav = v.passing, v._nav
+        self._job, self._pending = job, None
 
     def _new_job(self, hist_worlds: list[torch.Tensor], lead: int, ahead: bool = False) -> DiffusionJob | RemoteJob:
         """A diffusion job for the segments that start after `hist_worlds` (real or predicted, one per ego),
@@ -350,3 +391,9 @@ class ReactionGroup:
     @property
     def frame_index(self) -> int:
         return self._index
+
+    @property
+    def reads_scene_next(self) -> bool:
+        """Whether the next step reads `scene`: only a step that starts a segment does (every step with slide),
+        so a caller whose scene moves may refresh it for those steps alone."""
+        return self.slide or self._seg is None or self._seg["f"] >= self.cfg.future

@@ -32,6 +32,21 @@ class JobSpec:
     targets: list[ControlTargets] | None    # test-time control of each row, None with control off
     control: ControlConfig | None
 
+    def __getstate__(self) -> dict:
+        """Pickled to the helper process: occupancy (0/1 cells) as bytes-sized booleans, a quarter of the bytes
+        to copy through the pipe, read back exactly."""
+        state = dict(self.__dict__)
+        occ = state["occupancy"]
+        if occ is not None and occ.dtype == torch.float32 and bool(((occ == 0) | (occ == 1)).all()):
+            state["occupancy"] = occ.to(torch.bool)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        occ = state["occupancy"]
+        if occ is not None and occ.dtype == torch.bool:
+            state["occupancy"] = occ.to(torch.float32)
+        self.__dict__.update(state)
+
 
 def build_job(model: ReMoGenModel, spec: JobSpec) -> DiffusionJob:
     """The DiffusionJob of a spec: its contexts encoded, its steering set up, no step taken yet."""

@@ -325,6 +325,11 @@ class JobWorker:
         self._send(("job", job_id, key, spec))
         return job_id
 
+    def has_result(self, job_id: int) -> bool:
+        """Whether a submitted job's result (or error) has come back."""
+        with self._done:
+            return job_id in self._results
+
     def result(self, job_id: int) -> torch.Tensor:
         """A submitted job's latent, waiting for it if needed. Raises WorkerError when it cannot come."""
         with self._done:
@@ -368,6 +373,7 @@ class RemoteJob:
         self.final_steers = cc.final_steers if cc else 0
         self.total_steps = model.cfg.diffusion_steps + self.final_steers
         self._result: torch.Tensor | None = None
+        self.was_ready = False        # whether its latent was back before it was first asked for
         self.job_id = worker.submit(model, spec)
         weakref.finalize(self, worker.discard, self.job_id)
 
@@ -377,6 +383,7 @@ class RemoteJob:
     @property
     def result(self) -> torch.Tensor:
         if self._result is None:
+            self.was_ready = self.worker.has_result(self.job_id)
             try:
                 self._result = self.worker.result(self.job_id)
             except WorkerError as exc:

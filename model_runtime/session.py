@@ -101,6 +101,11 @@ class ReactionSession:
     def frame_index(self) -> int:
         return self._group.frame_index
 
+    @property
+    def reads_scene_next(self) -> bool:
+        """Whether the next step reads `scene` (it starts a segment): see ReactionGroup.reads_scene_next."""
+        return self._group.reads_scene_next
+
     def history_world_features(self) -> torch.Tensor:
         """(H, 276) the latest emitted frames as world-frame features (for tools and tests)."""
         return self._ego.hist_world.clone()

@@ -240,7 +240,8 @@ class FrameDriver:
                                 f"pick {'a target' if what == 'Target' else 'or create an ego'} and start again")
         partner = self._partner(scene, st, depsgraph)
         goal = self._goal(st, depsgraph)
-        self.group.scene = self.scene_cache.grid(st.scene_collection, depsgraph)
+        if self.group.reads_scene_next:     # the only steps that read it: checking the meshes costs ~1 ms
+            self.group.scene = self.scene_cache.grid(st.scene_collection, depsgraph)
         frames = self._model_step(partner, goal)
         frame = frames[0]
         self.frames.append(frame)

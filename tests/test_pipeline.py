@@ -3,6 +3,7 @@ must be exactly those of a rollout without it, also when the helper fails, and t
 from __future__ import annotations
 
 import sys
+import time
 import warnings
 
 import numpy as np
@@ -27,14 +28,20 @@ def _ready(worker: JobWorker) -> JobWorker:
     return worker
 
 
-def _rollout(group: ReactionGroup, frames: int = FRAMES, kill_at: int | None = None) -> tuple[np.ndarray, int]:
-    """Frames of a rollout with a partner walking up, a box scene and goals; and how many jobs ran remotely."""
+def _rollout(group: ReactionGroup, frames: int = FRAMES, kill_at: int | None = None,
+             helper_ahead: bool = False) -> tuple[np.ndarray, int]:
+    """Frames of a rollout with a partner walking up, a box scene and goals; and how many jobs ran remotely.
+    helper_ahead: before each step, wait until the helper has finished its job (a viewport at real time)."""
     partner, remote = approaching_partner(frames), []
     group.reset(root_positions=[(0.6 * i, 0.0, 0.0) for i in range(len(group.egos))])
     out = []
     for i in range(frames):
         if kill_at == i:
             group._worker._proc.kill()
+        if helper_ahead and isinstance(group._job, RemoteJob):
+            deadline = time.monotonic() + 60.0
+            while not group._worker.has_result(group._job.job_id) and time.monotonic() < deadline:
+                time.sleep(0.001)
         out.extend(group.step(partner=None if i % 7 == 6 else partner[i], goals=[BOX_GOAL] * len(group.egos)))
         if isinstance(group._job, RemoteJob) and not any(group._job is r for r in remote):
             remote.append(group._job)
@@ -65,6 +72,25 @@ def test_pipelined_frames_equal_the_unpipelined_ones_bit_for_bit(tiny_model, wor
     assert none_remote == 0
     assert remote >= FRAMES // tiny_model.cfg.future - 2, "the helper process took (almost) no jobs"
     assert np.array_equal(plain, piped)
+
+
+@pytest.mark.parametrize("egos", [1, 2])
+def test_jobs_sent_a_step_late_when_the_helper_is_ahead_give_the_same_frames(tiny_model, worker, egos):
+    plain, _ = _rollout(_group(tiny_model, egos, pipeline=False))
+    group = _group(tiny_model, egos, pipeline=True, worker=worker)
+    deferred = []
+    build = group._build_pending
+
+    def counted() -> None:
+        deferred.append(group.frame_index)
+        build()
+
+    group._build_pending = counted
+    piped, remote = _rollout(group, helper_ahead=True)
+    assert np.array_equal(plain, piped)
+    # every segment start after the second one (the first job runs here, the second is asked for at once)
+    assert len(deferred) >= FRAMES // tiny_model.cfg.future - 2 and remote >= len(deferred)
+    assert all(i % tiny_model.cfg.future == 1 for i in deferred), deferred
 
 
 def test_a_session_pipelines_through_its_group(tiny_model, worker):
