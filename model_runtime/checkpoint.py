@@ -92,13 +92,13 @@ def _read_payload(path: Path) -> dict:
 
 
 def untrained_stages(meta: dict) -> list[str] | None:
-    """The training stages a model file's meta shows as not trained; None when the file does not say."""
-    from .training.stages import STAGES
+    """The required training stages a model file's meta shows as not trained; None when the file does not say."""
+    from .training.stages import REQUIRED_STAGES
     stages = meta.get("stages")
     if isinstance(stages, dict):
-        return [s for s in STAGES if _stage_steps(stages.get(s)) <= 0]
+        return [s for s in REQUIRED_STAGES if _stage_steps(stages.get(s)) <= 0]
     if meta.get("trained") is False:
-        return list(STAGES)
+        return list(REQUIRED_STAGES)
     return None
 
 
@@ -147,11 +147,11 @@ def load_model(path: str | os.PathLike | None = None, *, config: "str | ModelCon
 
 
 def _warn_untrained(path: Path, meta: dict) -> None:
-    from .training.stages import STAGES
+    from .training.stages import REQUIRED_STAGES
     missing = untrained_stages(meta)
     if not missing:
         return
-    what = ("holds untrained (random) weights" if len(missing) == len(STAGES) else
+    what = ("holds untrained (random) weights" if len(missing) == len(REQUIRED_STAGES) else
             f"is only partly trained (untrained: {', '.join(missing)})")
     warnings.warn(f"{path} {what}, so its motion will be poor; train the missing stages (python -m "
                   "model_runtime.train STAGE --out FOLDER continues from FOLDER/model.pt)", stacklevel=3)

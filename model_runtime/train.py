@@ -1,7 +1,7 @@
 """Staged training: python -m model_runtime.train STAGE [options]
 
     python -m model_runtime.train vae   --library runs/clips.npz --out runs/train
-    python -m model_runtime.train prior ...; hhi; hsi; fwsr
+    python -m model_runtime.train prior ...; hhi; hsi; fwsr; decoder
 
 Each stage starts from OUT/model.pt (written by the stage before; `vae` starts from a fresh model),
 freezes everything but its own module, trains with AdamW, gradient clipping 1.0 and an EMA (0.999,
@@ -11,7 +11,7 @@ rerunning the same command continues from it. Losses go to OUT/STAGE.log.jsonl.
 
     python -m model_runtime.train all --library runs/clips.npz --out runs/train --minutes 30
 
-runs the five stages in order within one time budget, skips stages already done, stops after a stage that
+runs the six stages in order within one time budget, skips stages already done, stops after a stage that
 ran out of time, and ends with a summary: steps per stage, best held-out loss, files written and the
 command that continues the run.
 
@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     ap = argparse.ArgumentParser(prog="python -m model_runtime.train", description=__doc__.split("\n\n")[0],
                                  formatter_class=HelpFormatter)
-    ap.add_argument("stage", choices=STAGES + ("all",), help="the stage to train, or all five in order")
+    ap.add_argument("stage", choices=STAGES + ("all",), help="the stage to train, or all six in order")
     ap.add_argument("--library", default="runs/clips.npz", help="clip cache (built from --data if missing)")
     ap.add_argument("--data", default=None, help="motion folder to build a missing clip cache from "
                     "(as python -m model_runtime.data.prepare --data does)")

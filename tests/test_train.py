@@ -102,13 +102,38 @@ def test_ddp_time_limit_stops_every_rank_together(tmp_path, lib):
     assert state["step"] == stage["steps"]
 
 
-def test_all_five_stages_run_in_order(tmp_path, lib):
+def test_all_six_stages_run_in_order_and_the_decoder_stage_trains_the_decoder_alone(tmp_path, lib):
     out = tmp_path / "all"
     for stage in ("vae", "prior", "hhi", "hsi", "fwsr"):
         train_stage(stage, out, lib, config="tiny", steps=2, batch=4, val_every=2, val_batches=1, progress=False)
+    before = load_model(out / "model.pt")
+    assert float(before.fwsr.sensitivity.mean()) == pytest.approx(1.0, rel=1e-4)   # computed, normalised
+    train_stage("decoder", out, lib, config="tiny", steps=3, batch=4, val_every=3, val_batches=1, progress=False)
     model = load_model(out / "model.pt")
-    assert list(model.meta["stages"]) == ["vae", "prior", "hhi", "hsi", "fwsr"]
-    assert float(model.fwsr.sensitivity.mean()) == pytest.approx(1.0, rel=1e-4)   # computed, normalised
+    assert list(model.meta["stages"]) == ["vae", "prior", "hhi", "hsi", "fwsr", "decoder"]
+    old, new = before.state_dict(), model.state_dict()
+    decoder = {f"vae.{n}" for n, _ in model.vae.decoder_parts().named_parameters()} | \
+        {f"vae.{n}" for n, _ in model.vae.named_parameters() if n.startswith(("z_proj", "dec_", "decoder.", "out."))}
+    changed = {k for k in old if not torch.equal(old[k], new[k])}
+    assert changed and changed <= decoder | {"fwsr.sensitivity"}, changed - decoder
+    assert any(k.startswith("vae.decoder.") for k in changed)
+    assert "fwsr.sensitivity" in changed          # measured again for the new decoder
+    assert float(model.fwsr.sensitivity.mean()) == pytest.approx(1.0, rel=1e-4)
+    log = read_log(out / "decoder.log.jsonl")
+    assert all(r["first_m"] >= 0 and r["shown_m"] >= 0 for r in log)
+
+
+def test_shown_joint_error_is_the_kinematic_distance_per_frame():
+    from model_runtime.training.stages import shown_joint_error
+    model = load_model(config="tiny")
+    real = torch.randn(2, model.cfg.future, model.cfg.feature_dim) * 0.1
+    assert torch.allclose(shown_joint_error(model.stats, real, real), torch.zeros(model.cfg.future))
+    moved = model.stats.denormalize(real).clone()
+    from model_runtime.features import ROOT_T
+    moved[:, 3, ROOT_T] += torch.tensor([0.3, 0.0, 0.4])        # the whole body 0.5 m away in frame 3
+    err = shown_joint_error(model.stats, model.stats.normalize(moved), real)
+    assert err[3] == pytest.approx(0.5, abs=1e-4)
+    assert torch.allclose(err[torch.arange(model.cfg.future) != 3], torch.zeros(model.cfg.future - 1), atol=1e-5)
 
 
 def test_ema_warms_up_so_short_stages_do_not_ship_their_initialisation():

@@ -30,6 +30,14 @@ class MotionVAE(nn.Module):
         self.dec_norm = nn.LayerNorm(d)
         self.out = nn.Linear(d, cfg.feature_dim)
 
+    def decoder_parts(self) -> nn.Module:
+        """The decoder's weights as one module sharing them with this VAE (to train the decoder alone)."""
+        parts = nn.Module()
+        parts.z_proj, parts.hist_proj, parts.queries, parts.pos = self.z_proj, self.dec_hist_proj, self.dec_queries, \
+            self.dec_pos
+        parts.layers, parts.norm, parts.out = self.decoder, self.dec_norm, self.out
+        return parts
+
     def encode(self, hist: torch.Tensor, fut: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """hist (B,H,D), fut (B,F,D) normalised -> mu, logvar (B, L, dz)."""
         b = hist.shape[0]

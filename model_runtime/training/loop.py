@@ -162,6 +162,8 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         ema.swap()
         model.eval()
         model.cpu()   # the model file holds CPU tensors whatever trained it
+        if stage == "decoder":     # FWSR's damping reads the decoder's sensitivity: measure the new decoder's
+            decoder_sensitivity(model, lib, seed)
         meta = dict(model.meta)
         stages = dict(meta.get("stages", {}))
         stages[stage] = {"steps": step, "wall_s": round(wall + time.time() - t_start, 1), "batch": batch,

@@ -6,6 +6,9 @@
     hsi    Meta-Interaction Module for scenes and goals, same objectives, occupancy + goal context
     fwsr   frame-wise latent refinement (everything else frozen): the refined decode of frame f must
            match the real frame f given the latest real history and partner frames
+    decoder the VAE's decoder alone (the encoder, so the latent space every stage above learned, frozen):
+           reconstruction + the error of the motion as shown (the kinematics of the decoded rotations and
+           pelvis), the segment's first frames most, so that a segment starts where its history ends
 """
 from __future__ import annotations
 
@@ -13,10 +16,15 @@ import torch
 from torch import nn
 
 from ..model import Contexts, ReMoGenModel, noise
-from .recipe import FWSR_OWN_SHARE, TEXT_DROP
+from ..features import features_to_pose
+from ..skeleton import forward_kinematics
+from .recipe import DECODER_FIRST_FRAMES, DECODER_SHOWN_WEIGHT, FWSR_OWN_SHARE, TEXT_DROP
 from .samples import Batch
 
-STAGES = ("vae", "prior", "hhi", "hsi", "fwsr")
+STAGES = ("vae", "prior", "hhi", "hsi", "fwsr", "decoder")
+# A refinement of a trained model: a file without it is complete (files made before it existed have none).
+OPTIONAL_STAGES = ("decoder",)
+REQUIRED_STAGES = tuple(s for s in STAGES if s not in OPTIONAL_STAGES)
 TEXT_STAGES = ("prior", "hhi", "hsi")   # the stages that train the denoiser's text input (with caption dropout)
 KL_WEIGHT = 1e-4
 
@@ -35,7 +43,18 @@ def own_recent_frames(model: ReMoGenModel, b: Batch, z0: torch.Tensor, gen: torc
     return torch.where(own.view(-1, 1, 1), mine, b.recent)
 
 
+def shown_joint_error(stats, decoded_n: torch.Tensor, real_n: torch.Tensor) -> torch.Tensor:
+    """(F,) mean joint distance (m) per segment frame between the motion shown for decoded and for real
+    normalised features (B, F, D): forward kinematics of their rotations and pelvis, as the runtime shows it."""
+    shown = forward_kinematics(*features_to_pose(stats.denormalize(decoded_n)))[0]
+    with torch.no_grad():
+        real = forward_kinematics(*features_to_pose(stats.denormalize(real_n)))[0]
+    return (shown - real).norm(dim=-1).mean((0, 2))
+
+
 def trainable_module(model: ReMoGenModel, stage: str) -> nn.Module:
+    if stage == "decoder":
+        return model.vae.decoder_parts()
     return {"vae": model.vae, "prior": model.denoiser, "hhi": model.mims["hhi"], "hsi": model.mims["hsi"],
             "fwsr": model.fwsr}[stage]
 
@@ -61,7 +80,7 @@ class StageLoss(nn.Module):
         self.model, self.stage = model, stage
 
     def forward(self, batch: Batch, gen: torch.Generator) -> tuple[torch.Tensor, dict[str, float]]:
-        return getattr(self, f"_{self.stage if self.stage in ('vae', 'fwsr') else 'denoise'}")(batch, gen)
+        return getattr(self, f"_{self.stage if self.stage in ('vae', 'fwsr', 'decoder') else 'denoise'}")(batch, gen)
 
     def _vae(self, b: Batch, gen: torch.Generator):
         vae = self.model.vae
@@ -70,6 +89,21 @@ class StageLoss(nn.Module):
         rec = nn.functional.smooth_l1_loss(vae.decode(b.hist, z), b.fut)
         kl = 0.5 * (mu.pow(2) + logvar.exp() - 1 - logvar).mean()
         return rec + KL_WEIGHT * kl, {"rec": float(rec.detach()), "kl": float(kl.detach())}
+
+    def _decoder(self, b: Batch, gen: torch.Generator):
+        vae = self.model.vae
+        with torch.no_grad():
+            mu, logvar = vae.encode(b.hist, b.fut)
+        z = mu + noise(mu.shape, gen, mu.device) * torch.exp(0.5 * logvar)
+        dec = vae.decode(b.hist, z)
+        rec = nn.functional.smooth_l1_loss(dec, b.fut)
+        shown = shown_joint_error(self.model.stats, dec, b.fut)
+        w = torch.ones_like(shown)
+        w[:len(DECODER_FIRST_FRAMES)] = torch.tensor(DECODER_FIRST_FRAMES, dtype=w.dtype)
+        shown_loss = (shown * w / w.mean()).mean()
+        return rec + DECODER_SHOWN_WEIGHT * shown_loss, {"rec": float(rec.detach()),
+                                                        "shown_m": float(shown.mean().detach()),
+                                                        "first_m": float(shown[0].detach())}
 
     def text_tokens(self, b: Batch, gen: torch.Generator) -> torch.Tensor:
         m = self.model
