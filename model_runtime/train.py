@@ -1,7 +1,8 @@
 """Staged training: python -m model_runtime.train STAGE [options]
 
     python -m model_runtime.train vae   --library runs/clips.npz --out runs/train
-    python -m model_runtime.train prior ...; hhi; hsi; fwsr; decoder
+    python -m model_runtime.train prior ...; hhi; hsi; fwsr
+    python -m model_runtime.train decoder ...   (optional: the decoder alone, on the motion as shown)
 
 Each stage starts from OUT/model.pt (written by the stage before; `vae` starts from a fresh model),
 freezes everything but its own module, trains with AdamW, gradient clipping 1.0 and an EMA (0.999,
@@ -11,7 +12,7 @@ rerunning the same command continues from it. Losses go to OUT/STAGE.log.jsonl.
 
     python -m model_runtime.train all --library runs/clips.npz --out runs/train --minutes 30
 
-runs the six stages in order within one time budget, skips stages already done, stops after a stage that
+runs the five stages of a model in order within one time budget, skips stages already done, stops after a stage that
 ran out of time, and ends with a summary: steps per stage, best held-out loss, files written and the
 command that continues the run.
 
@@ -44,7 +45,7 @@ from .training.loop import past_deadline, rank_and_world, train_stage
 from .training.recipe import DEFAULT_STEPS, RECIPE
 from .training.init_from import start_from_vae
 from .training.report import StageRun, say, summary
-from .training.stages import STAGES
+from .training.stages import REQUIRED_STAGES, STAGES
 
 __all__ = ["EMA", "RECIPE", "DEFAULT_STEPS", "STAGES", "StageRun", "main", "train_stage"]
 
@@ -53,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     ap = argparse.ArgumentParser(prog="python -m model_runtime.train", description=__doc__.split("\n\n")[0],
                                  formatter_class=HelpFormatter)
-    ap.add_argument("stage", choices=STAGES + ("all",), help="the stage to train, or all six in order")
+    ap.add_argument("stage", choices=STAGES + ("all",), help="the stage to train, or all (the five a model needs, in order; decoder, a refinement, runs only by name)")
     ap.add_argument("--library", default="runs/clips.npz", help="clip cache (built from --data if missing)")
     ap.add_argument("--data", default=None, help="motion folder to build a missing clip cache from "
                     "(as python -m model_runtime.data.prepare --data does)")
@@ -101,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
             if start_from_vae(Path(args.init_vae), out, args.config) and progress:
                 say(f"vae: copied from {args.init_vae} into {out / 'model.pt'}")
         deadline = time.time() + args.minutes * 60 if args.minutes else None
-        for st in STAGES if args.stage == "all" else (args.stage,):
+        for st in REQUIRED_STAGES if args.stage == "all" else (args.stage,):
             if _stage_done(out, st, args.steps):
                 if progress:
                     say(f"{st}: already done ({out / (st + '.state.pt')}); skipped")

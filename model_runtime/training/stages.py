@@ -1,4 +1,4 @@
-"""The five training stages as loss modules. Each freezes every stage before it (paper, sec. 3).
+"""The training stages as loss modules. Each freezes every stage before it (paper, sec. 3).
 
     vae    motion VAE: reconstruction + KL
     prior  latent denoiser (x0 prediction): latent loss + reconstruction through the frozen decoder
