@@ -11,8 +11,8 @@ while FWSR reacts to the partner every frame and switching FWSR on or off acts o
 small torch ops, GIL contention made the job finish later than spreading it, p99 38 ms vs 9 ms.)
 With `pipeline=True` each job after the first runs instead in a helper process (job_worker.py) while
 this one plays the segment's frames, and is collected at the segment's start: the same latent, so the
-same motion, with only the frames' own work left on the caller's thread. When the helper is ahead (the
-job was done before it was asked for, as in a viewport playing at real time), the next job's inputs are
+same motion, with only the frames' own work left on the caller's thread. When the helper is well ahead (the
+job was back well before it was asked for, as in a viewport playing at real time), the next job's inputs are
 fixed at the segment's start as always but it is built and sent at the following step, so the start of a
 segment (seam steering, decoding) and the sending of a job do not add up in one step.
 With FWSR on, every frame f >= 1 of a segment re-decodes a latent refined from the latest history and
@@ -51,6 +51,12 @@ from .job_spec import JobSpec, build_job
 from .job_worker import JobWorker, RemoteJob, WorkerError, pipelinable, shared_worker
 from .model import DiffusionJob, ReMoGenModel, job_draws, non_finite_weight
 from .schedule import BOUNDARY_COST, STEERED_STEP_COST, steps_per_frame
+
+
+# A job back at least this long before its segment started means the helper has time to spare (a viewport at real
+# time: hundreds of ms): the next job may go out a step late. Stepping back to back (a bake) the helper is the
+# slower side and a step's delay would hold up the whole chain of jobs.
+AHEAD_SLACK = 0.02   # s
 
 
 class ReactionGroup:
@@ -214,7 +220,7 @@ class ReactionGroup:
             seg = self._seg = self._start_segment(job)
             predicted = [to_world(self.model.stats.denormalize(seg["future"][i, -cfg.history:]),
                                   e.seg["rot"], e.seg["trans"]) for i, e in enumerate(self.egos)]
-            if isinstance(job, RemoteJob) and job.was_ready and cfg.future > 1:
+            if isinstance(job, RemoteJob) and job.slack >= AHEAD_SLACK and cfg.future > 1:
                 self._pending = self._fix_inputs(predicted, lead=cfg.future)
             else:
                 self._job = self._new_job(predicted, lead=cfg.future, ahead=True)

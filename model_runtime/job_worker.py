@@ -30,6 +30,7 @@ import struct
 import subprocess
 import sys
 import threading
+import time
 import warnings
 import weakref
 from pathlib import Path
@@ -209,6 +210,7 @@ class JobWorker:
         self.ready = threading.Event()
         self.gone = threading.Event()
         self._results: dict[int, tuple] = {}
+        self._arrived: dict[int, float] = {}    # job id -> when its result came back (time.monotonic())
         self._done = threading.Condition()
         self._outbox: queue.Queue = queue.Queue()
         self._ids = itertools.count()
@@ -265,6 +267,7 @@ class JobWorker:
             else:
                 with self._done:
                     self._results[msg[1]] = msg
+                    self._arrived[msg[1]] = time.monotonic()
                     self._done.notify_all()
 
     def _fail(self, why: str) -> None:
@@ -330,12 +333,19 @@ class JobWorker:
         with self._done:
             return job_id in self._results
 
+    def waiting_since(self, job_id: int) -> float:
+        """How long (s) a job's result has been back, 0.0 while it is not."""
+        with self._done:
+            arrived = self._arrived.get(job_id)
+        return 0.0 if arrived is None else time.monotonic() - arrived
+
     def result(self, job_id: int) -> torch.Tensor:
         """A submitted job's latent, waiting for it if needed. Raises WorkerError when it cannot come."""
         with self._done:
             while job_id not in self._results and not self.gone.is_set():
                 self._done.wait()
             msg = self._results.pop(job_id, None)
+            self._arrived.pop(job_id, None)
         if msg is None:
             raise WorkerError(self.problem or "the helper process is gone")
         if msg[0] == "error":
@@ -346,6 +356,7 @@ class JobWorker:
         """Forget a job whose result is no longer wanted (it may still arrive: then it is dropped)."""
         with self._done:
             self._results.pop(job_id, None)
+            self._arrived.pop(job_id, None)
 
     def close(self, timeout: float = 2.0) -> None:
         """Stop the helper (it also stops by itself when this process ends and its pipe closes)."""
@@ -373,7 +384,7 @@ class RemoteJob:
         self.final_steers = cc.final_steers if cc else 0
         self.total_steps = model.cfg.diffusion_steps + self.final_steers
         self._result: torch.Tensor | None = None
-        self.was_ready = False        # whether its latent was back before it was first asked for
+        self.slack = 0.0              # how long (s) its latent had been back when it was first asked for
         self.job_id = worker.submit(model, spec)
         weakref.finalize(self, worker.discard, self.job_id)
 
@@ -383,7 +394,7 @@ class RemoteJob:
     @property
     def result(self) -> torch.Tensor:
         if self._result is None:
-            self.was_ready = self.worker.has_result(self.job_id)
+            self.slack = self.worker.waiting_since(self.job_id)
             try:
                 self._result = self.worker.result(self.job_id)
             except WorkerError as exc:

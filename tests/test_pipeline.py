@@ -11,6 +11,7 @@ import pytest
 
 from model_runtime import EgoSettings, ReactionGroup, ReactionSession
 from model_runtime.fixtures import BOX_GOAL, approaching_partner, box_scene
+from model_runtime.group import AHEAD_SLACK
 from model_runtime.job_worker import JobWorker, RemoteJob
 
 
@@ -42,6 +43,7 @@ def _rollout(group: ReactionGroup, frames: int = FRAMES, kill_at: int | None = N
             deadline = time.monotonic() + 60.0
             while not group._worker.has_result(group._job.job_id) and time.monotonic() < deadline:
                 time.sleep(0.001)
+            time.sleep(AHEAD_SLACK)
         out.extend(group.step(partner=None if i % 7 == 6 else partner[i], goals=[BOX_GOAL] * len(group.egos)))
         if isinstance(group._job, RemoteJob) and not any(group._job is r for r in remote):
             remote.append(group._job)
