@@ -235,3 +235,17 @@ def test_a_non_finite_pose_raises_and_leaves_the_session_as_it_was(breaker, word
     assert s.frame_index == 9 and torch.equal(before, s.history_world_features())
     repair()
     assert all(np.array_equal(s.step().joints, e) for e in expected[9:])
+
+
+def test_the_scene_is_read_only_on_steps_that_start_a_segment(tiny_model):
+    """reads_scene_next is what the extension relies on to check the scene meshes only when they are read."""
+    from model_runtime.fixtures import BOX_GOAL, box_scene
+    s = ReactionSession(tiny_model, text="a person walks", scene=box_scene())
+    f = tiny_model.cfg.future
+    reads = []
+    for _ in range(2 * f + 1):
+        reads.append(s.reads_scene_next)
+        s.step(goal=BOX_GOAL)
+    assert reads == [i % f == 0 for i in range(2 * f + 1)]
+    slide = ReactionSession(tiny_model, slide=True)
+    assert slide.reads_scene_next and (slide.step() is not None) and slide.reads_scene_next
