@@ -211,6 +211,8 @@ class JobWorker:
         self.gone = threading.Event()
         self._results: dict[int, tuple] = {}
         self._arrived: dict[int, float] = {}    # job id -> when its result came back (time.monotonic())
+        self._outstanding: set[int] = set()      # submitted jobs whose result has not come back yet
+        self._dropped: set[int] = set()          # of those, the discarded ones (their result is dropped)
         self._done = threading.Condition()
         self._outbox: queue.Queue = queue.Queue()
         self._ids = itertools.count()
@@ -266,6 +268,10 @@ class JobWorker:
                 self.ready.set()
             else:
                 with self._done:
+                    self._outstanding.discard(msg[1])
+                    if msg[1] in self._dropped:      # nobody wants it any more
+                        self._dropped.discard(msg[1])
+                        continue
                     self._results[msg[1]] = msg
                     self._arrived[msg[1]] = time.monotonic()
                     self._done.notify_all()
@@ -325,6 +331,8 @@ class JobWorker:
             raise WorkerError(self.problem or "the helper process is still starting")
         key = self._send_model(model)
         job_id = next(self._ids)
+        with self._done:
+            self._outstanding.add(job_id)
         self._send(("job", job_id, key, spec))
         return job_id
 
@@ -357,6 +365,8 @@ class JobWorker:
         with self._done:
             self._results.pop(job_id, None)
             self._arrived.pop(job_id, None)
+            if job_id in self._outstanding:
+                self._dropped.add(job_id)
 
     def close(self, timeout: float = 2.0) -> None:
         """Stop the helper (it also stops by itself when this process ends and its pipe closes)."""

@@ -132,3 +132,16 @@ def test_models_the_helper_cannot_run_stay_here(tiny_model):
     from model_runtime import load_model
     assert pipelinable(tiny_model)
     assert not pipelinable(load_model(config="tiny", precision="bf16"))
+
+
+def test_the_caller_keeps_nothing_of_finished_or_discarded_jobs(tiny_model, worker):
+    group = _group(tiny_model, 1, pipeline=True, worker=worker)
+    _rollout(group, frames=20)
+    group.reset()                      # the job in flight is discarded
+    deadline = time.monotonic() + 30.0
+    while (worker._outstanding or worker._dropped) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    import gc
+    gc.collect()
+    with worker._done:
+        assert not worker._results and not worker._arrived and not worker._dropped and not worker._outstanding
