@@ -125,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         if dist.is_initialized():
             dist.destroy_process_group()
     if rank == 0:
-        print(summary(runs, STAGES, argv, world), file=sys.stderr)
+        print(summary(runs, REQUIRED_STAGES, argv, world), file=sys.stderr)
     return 0
 
 

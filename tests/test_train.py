@@ -318,3 +318,18 @@ def test_fwsr_rows_read_the_generators_own_frames_in_the_real_frames_place(lib, 
     assert torch.allclose(own, b.recent, atol=1e-5)
     monkeypatch.setattr(stages, "FWSR_OWN_SHARE", 0.0)
     assert stages.own_recent_frames(model, b, torch.zeros(6, 2, 4), torch.Generator()) is b.recent
+
+
+def test_the_end_summary_points_to_the_next_required_stage_only(tmp_path):
+    from model_runtime.training.report import StageRun, summary
+    from model_runtime.training.stages import REQUIRED_STAGES
+
+    def run(stage: str) -> StageRun:
+        return StageRun(stage, tmp_path / "model.pt", tmp_path / f"{stage}.state.pt", tmp_path / "none.jsonl", 5, 5, 1.0)
+
+    argv = ["hsi", "--out", str(tmp_path)]
+    assert "next stage: python -m model_runtime.train fwsr --out" in summary([run("hsi")], REQUIRED_STAGES, argv, 1)
+    after_fwsr = summary([run("fwsr")], REQUIRED_STAGES, ["fwsr", "--out", str(tmp_path)], 1)
+    assert "next stage" not in after_fwsr and "decoder" not in after_fwsr     # the optional stage is not the next one
+    after_decoder = summary([run("decoder")], REQUIRED_STAGES, ["decoder", "--out", str(tmp_path)], 1)
+    assert "next stage" not in after_decoder and "saved:" in after_decoder

@@ -66,7 +66,7 @@ def summary(runs: list[StageRun], stages: tuple[str, ...], argv: list[str], worl
     if not last.finished:
         bound = "" if "--minutes" in argv else "; add --minutes N to bound the run"
         lines.append(f"to continue: {command}   (resumes {last.stage} at step {last.steps:,}{bound})")
-    elif last.stage != stages[-1]:
+    elif last.stage in stages and last.stage != stages[-1]:
         nxt = stages[stages.index(last.stage) + 1]
         # the STAGE argument: the stage's name where no option precedes it as its value
         at = next((i for i, a in enumerate(argv) if a == last.stage and (i == 0 or not argv[i - 1].startswith("-"))),
