@@ -80,7 +80,7 @@ def solve_leg(glob: np.ndarray, joints: np.ndarray, leg: tuple[int, int, int, in
     h = joints[hip]
     l1 = _norm(glob[hip] @ _OFFSETS[knee])
     l2 = _norm(glob[knee] @ _OFFSETS[ankle])
-    d_true = float(_norm(target - h))
+    d_true = _norm(target - h)
     d = min(d_true, reach * (l1 + l2))
     if d_true - d > max_miss or d < abs(l1 - l2) + 1e-4:
         return False

@@ -209,10 +209,8 @@ class JobWorker:
     def __init__(self) -> None:
         self.ready = threading.Event()
         self.gone = threading.Event()
-        self._results: dict[int, tuple] = {}
-        self._arrived: dict[int, float] = {}    # job id -> when its result came back (time.monotonic())
-        self._outstanding: set[int] = set()      # submitted jobs whose result has not come back yet
-        self._dropped: set[int] = set()          # of those, the discarded ones (their result is dropped)
+        self._results: dict[int, tuple[tuple, float]] = {}   # job id -> (its reply, when it came: monotonic)
+        self._dropped: set[int] = set()          # discarded before their reply came: it is dropped then
         self._done = threading.Condition()
         self._outbox: queue.Queue = queue.Queue()
         self._ids = itertools.count()
@@ -268,12 +266,10 @@ class JobWorker:
                 self.ready.set()
             else:
                 with self._done:
-                    self._outstanding.discard(msg[1])
                     if msg[1] in self._dropped:      # nobody wants it any more
                         self._dropped.discard(msg[1])
                         continue
-                    self._results[msg[1]] = msg
-                    self._arrived[msg[1]] = time.monotonic()
+                    self._results[msg[1]] = (msg, time.monotonic())
                     self._done.notify_all()
 
     def _fail(self, why: str) -> None:
@@ -331,8 +327,6 @@ class JobWorker:
             raise WorkerError(self.problem or "the helper process is still starting")
         key = self._send_model(model)
         job_id = next(self._ids)
-        with self._done:
-            self._outstanding.add(job_id)
         self._send(("job", job_id, key, spec))
         return job_id
 
@@ -344,16 +338,16 @@ class JobWorker:
     def waiting_since(self, job_id: int) -> float:
         """How long (s) a job's result has been back, 0.0 while it is not."""
         with self._done:
-            arrived = self._arrived.get(job_id)
-        return 0.0 if arrived is None else time.monotonic() - arrived
+            reply = self._results.get(job_id)
+        return 0.0 if reply is None else time.monotonic() - reply[1]
 
     def result(self, job_id: int) -> torch.Tensor:
         """A submitted job's latent, waiting for it if needed. Raises WorkerError when it cannot come."""
         with self._done:
             while job_id not in self._results and not self.gone.is_set():
                 self._done.wait()
-            msg = self._results.pop(job_id, None)
-            self._arrived.pop(job_id, None)
+            reply = self._results.pop(job_id, None)
+        msg = None if reply is None else reply[0]
         if msg is None:
             raise WorkerError(self.problem or "the helper process is gone")
         if msg[0] == "error":
@@ -361,11 +355,10 @@ class JobWorker:
         return msg[2]
 
     def discard(self, job_id: int) -> None:
-        """Forget a job whose result is no longer wanted (it may still arrive: then it is dropped)."""
+        """Forget a job whose result was not taken and is no longer wanted (it may still arrive: then it is
+        dropped)."""
         with self._done:
-            self._results.pop(job_id, None)
-            self._arrived.pop(job_id, None)
-            if job_id in self._outstanding:
+            if self._results.pop(job_id, None) is None:
                 self._dropped.add(job_id)
 
     def close(self, timeout: float = 2.0) -> None:
@@ -396,7 +389,7 @@ class RemoteJob:
         self._result: torch.Tensor | None = None
         self.slack = 0.0              # how long (s) its latent had been back when it was first asked for
         self.job_id = worker.submit(model, spec)
-        weakref.finalize(self, worker.discard, self.job_id)
+        self._discard = weakref.finalize(self, worker.discard, self.job_id)   # unless its result is taken
 
     def advance(self, steps: int) -> None:
         """Nothing to do in this process: the helper runs the whole job."""
@@ -410,6 +403,8 @@ class RemoteJob:
             except WorkerError as exc:
                 _warn_once(str(exc))
                 self._result = run_job(self.model, self.spec)
+            finally:
+                self._discard.detach()      # its reply, if any, is taken: nothing to discard later
         return self._result
 
     def snapshot(self) -> None:
