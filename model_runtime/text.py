@@ -47,7 +47,7 @@ _WORD = re.compile(r"[a-z0-9]+")
 _STOP = frozenset("a an the to of is in on at his her their its and then person human someone s".split())
 # Prompts kept encoded (least recently used dropped first): a live rig re-encodes its few prompts every
 # change, while a script feeding many distinct prompts must not grow memory without bound.
-CACHE_SIZE = 512
+CACHE_SIZE = 4096   # prompts kept encoded: training draws a few thousand distinct phrasings a stage
 
 
 class CachedEncoder:

@@ -100,6 +100,20 @@ def test_foot_cost_stops_a_planted_toe_sliding_and_lifts_joints_out_of_the_floor
     assert -g[:, TOE, 2].sum() > 0                                  # pushed up
 
 
+def test_foot_cost_fixes_a_slide_with_the_legs_not_by_slowing_the_body():
+    body = standing_body()
+    frames = body.expand(4, -1, -1).clone()
+    frames[:, :, 1] += torch.tensor([0.1, 0.2, 0.3, 0.4]).view(4, 1)   # the whole body moving along +y ...
+    frames[:, TOE, 1] = body[TOE, 1]                                  # ... but for one toe
+    frames[1:, TOE, 1] += torch.tensor([0.02, 0.04, 0.06])            # which slides a little while planted
+    g = grad_of(lambda j: foot_cost(j, body, CFG), frames)
+    assert g[:, TOE, 1].abs().sum() > 0                               # the toe is pulled back against its slide
+    assert torch.allclose(g[..., :2].sum(-2), torch.zeros(4, 2), atol=1e-6)   # the body as a whole is not
+    whole = ControlConfig(skate_body_share=1.0)
+    g = grad_of(lambda j: foot_cost(j, body, whole), frames)
+    assert g[:, :, 1].sum() > 0                                       # share 1: slowing the body lowers it too
+
+
 def test_partner_future_extrapolates_a_walk_and_spots_a_standing_partner():
     walk = torch.as_tensor(approaching_partner(10, start=4.0, stop=1.0, speed=1.0))
     future, still = partner_future(walk, torch.ones(10, dtype=torch.bool), lead=1, frames=3, cfg=CFG)

@@ -49,11 +49,11 @@ def stats() -> FeatureStats:
     return s
 
 
-def batch(stats: FeatureStats, keep: bool):
+def batch(stats: FeatureStats, keep: bool, body_share: float = 0.0):
     g = torch.Generator().manual_seed(7)
     scene = box_scene()
     field, floor = DistanceField(scene), FloorMap(scene)
-    cfg = ControlConfig()
+    cfg = ControlConfig(skate_body_share=body_share)
     segs = torch.stack([walking_segment(g, (0.1, -0.6), (0.0, -0.08)),     # walks into the box, partner beside
                         walking_segment(g, (1.0, 0.0), (0.01, 0.0)),       # stands near a still partner, near its goal
                         walking_segment(g, (-0.5, 0.5), (0.0, 0.05)),      # no partner, far goal behind
@@ -86,8 +86,9 @@ def batch(stats: FeatureStats, keep: bool):
 
 
 @pytest.mark.parametrize("keep", [False, True])
-def test_numpy_costs_and_gradients_match_autograd(stats, keep):
-    costs, feat_n = batch(stats, keep)
+@pytest.mark.parametrize("body_share", [0.0, 0.5, 1.0])
+def test_numpy_costs_and_gradients_match_autograd(stats, keep, body_share):
+    costs, feat_n = batch(stats, keep, body_share)
     x = feat_n.clone().requires_grad_(True)
     with torch.enable_grad():
         reference = costs(x)

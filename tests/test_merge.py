@@ -1,0 +1,42 @@
+"""Joining HHI and HSI trained side by side from one prior file (model_runtime.training.merge)."""
+from __future__ import annotations
+
+import copy
+
+import pytest
+import torch
+
+from model_runtime.checkpoint import load_model, save_model
+from model_runtime.errors import RemogenError
+from model_runtime.training.merge import main, merge_stages
+
+
+def _trained(model, stage: str, value: float):
+    m = copy.deepcopy(model)
+    for p in m.mims[stage].parameters():
+        p.data.fill_(value)
+    m.meta = dict(m.meta, stages={**m.meta.get("stages", {}), stage: {"steps": 7}})
+    return m
+
+
+@pytest.mark.filterwarnings("ignore:.*partly trained")
+def test_merge_takes_the_other_files_module_and_its_record(tiny_model, tmp_path):
+    hhi = _trained(tiny_model, "hhi", 0.25)
+    hsi = _trained(tiny_model, "hsi", 0.5)
+    save_model(hhi, tmp_path / "hhi.pt")
+    save_model(hsi, tmp_path / "hsi.pt")
+    assert main([str(tmp_path / "hhi.pt"), str(tmp_path / "hsi.pt"), "--take", "hsi",
+                 "--out", str(tmp_path / "both.pt")]) == 0
+    both = load_model(tmp_path / "both.pt")
+    assert all(torch.all(p == 0.25) for p in both.mims["hhi"].parameters())
+    assert all(torch.all(p == 0.5) for p in both.mims["hsi"].parameters())
+    assert both.meta["stages"]["hhi"] == {"steps": 7} and both.meta["stages"]["hsi"] == {"steps": 7}
+
+
+def test_merge_refuses_modules_of_another_prior(tiny_model):
+    other = _trained(tiny_model, "hsi", 0.5)
+    next(other.denoiser.parameters()).data.add_(1.0)
+    with pytest.raises(RemogenError, match="different denoiser"):
+        merge_stages(copy.deepcopy(tiny_model), other, ("hsi",))
+    with pytest.raises(RemogenError, match="no trained hhi"):
+        merge_stages(copy.deepcopy(tiny_model), _trained(tiny_model, "hsi", 0.5), ("hhi",))
