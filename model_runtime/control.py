@@ -164,10 +164,11 @@ def foot_cost(joints: torch.Tensor, before: torch.Tensor, cfg: ControlConfig) ->
     toes = torch.cat((before[..., TOES, :].unsqueeze(-3), joints[..., :, TOES, :]), -3)      # (..., T + 1, 2, 3)
     sole = toes[..., 2] - SOLE_BELOW_FOOT_JOINT
     near = torch.sigmoid((0.04 - sole) / 0.01).detach()       # how planted each toe is; not a thing to move
-    # The pelvis's own motion enters the slide only by skate_body_share: a sliding foot is fixed by the leg.
+    # The pelvis's own motion enters the slide's gradient only by skate_body_share: a sliding foot is fixed by the
+    # leg. (pelvis - pelvis.detach() is zero in value; it only takes that share of the gradient off the pelvis.)
     pelvis = joints[..., :, :1, :2]
-    held = pelvis - (1.0 - cfg.skate_body_share) * (pelvis - pelvis.detach())
-    toes_xy = torch.cat((before[..., TOES, :2].unsqueeze(-3), joints[..., :, TOES, :2] - pelvis + held), -3)
+    moved = joints[..., :, TOES, :2] - (1.0 - cfg.skate_body_share) * (pelvis - pelvis.detach())
+    toes_xy = torch.cat((before[..., TOES, :2].unsqueeze(-3), moved), -3)
     slide = (toes_xy[..., 1:, :, :] - toes_xy[..., :-1, :, :]).pow(2).sum(-1)
     skate = (near[..., 1:, :] * near[..., :-1, :] * slide).sum((-2, -1))
     below = torch.relu(-sole).pow(2).sum((-2, -1)) + torch.relu(-joints[..., 2]).pow(2).sum((-2, -1))

@@ -47,7 +47,7 @@ def facing(joints: np.ndarray, target_xy: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def foot(joints: np.ndarray, before: np.ndarray, toes: tuple[int, int], skate_weight: float,
-         floor_weight: float, body_share: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+         floor_weight: float, body_share: float) -> tuple[np.ndarray, np.ndarray]:
     """control.foot_cost and its gradient. joints (B, T, 22, 3); before (B, 22, 3)."""
     t_idx = list(toes)
     tt = np.concatenate((before[:, None, t_idx], joints[:, :, t_idx]), 1)          # (B, T + 1, 2, 3)

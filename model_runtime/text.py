@@ -46,8 +46,9 @@ _WORD = re.compile(r"[a-z0-9]+")
 # Words that carry no motion meaning and appear in most captions ("a person ...").
 _STOP = frozenset("a an the to of is in on at his her their its and then person human someone s".split())
 # Prompts kept encoded (least recently used dropped first): a live rig re-encodes its few prompts every
-# change, while a script feeding many distinct prompts must not grow memory without bound.
-CACHE_SIZE = 4096   # prompts kept encoded: training draws a few thousand distinct phrasings a stage
+# change, training draws a few thousand distinct phrasings a stage, and a script feeding many distinct prompts
+# must not grow memory without bound (4,096 x 128 floats: 2 MB).
+CACHE_SIZE = 4096
 
 
 class CachedEncoder:
