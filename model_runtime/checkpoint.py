@@ -113,13 +113,15 @@ def _stage_steps(record) -> int:
 
 
 def load_model(path: str | os.PathLike | None = None, *, config: "str | ModelConfig | None" = None,
-               seed: int = 0, device: str = "cpu", precision: str = "fp32") -> ReMoGenModel:
+               seed: int = 0, device: str = "cpu", precision: str = "fp32",
+               warn_untrained: bool = True) -> ReMoGenModel:
     """Load a model file, or build a randomly initialised model from a config.
 
     load_model()                  -> the shipped default weights
     load_model("my.pt")           -> that file
     load_model(config="default")  -> random weights of that preset ("tiny", "default", "paper")
     precision="bf16" / "int8" runs the diffusion networks in bfloat16 / int8 (see ReMoGenModel.set_precision).
+    warn_untrained=False: no warning for a file whose later stages are untrained (training reads such files).
     """
     if config is not None and path is not None:
         raise ModelFileError("pass either a model file path or config=..., not both")
@@ -142,7 +144,8 @@ def load_model(path: str | os.PathLike | None = None, *, config: "str | ModelCon
                              "re-train or re-download the model")
     meta = payload.get("meta")
     model.meta = dict(meta) if isinstance(meta, dict) else {}
-    _warn_untrained(p, model.meta)
+    if warn_untrained:
+        _warn_untrained(p, model.meta)
     return model.to(device).eval().set_precision(precision)
 
 

@@ -7,7 +7,6 @@ the vae stage done, and trains prior, hhi, hsi and fwsr with the preset's text e
 """
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import torch
@@ -25,9 +24,7 @@ def start_from_vae(init: Path, out: Path, config: str) -> bool:
     model_path, state_path = out / "model.pt", out / "vae.state.pt"
     if model_path.exists() or state_path.exists():
         return False
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*untrained")
-        source = load_model(init)
+    source = load_model(init, warn_untrained=False)
     model = ReMoGenModel(resolve_config(config))
     for part in ("stats", "vae"):
         theirs, ours = getattr(source, part).state_dict(), getattr(model, part).state_dict()

@@ -6,7 +6,6 @@ import gc
 import json
 import os
 import time
-import warnings
 from pathlib import Path
 
 import torch
@@ -69,9 +68,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
             raise RemogenError(f"{model_path} not found: train the stages before '{stage}' first "
                                f"({' -> '.join(STAGES)})")
         note(f"starting from {model_path}")
-        with warnings.catch_warnings():   # the later stages are untrained here by design: no warning
-            warnings.filterwarnings("ignore", message=".*untrained")
-            model = load_model(model_path)
+        model = load_model(model_path, warn_untrained=False)   # its later stages are untrained by design
     params = freeze_for(model, stage)
     module = trainable_module(model, stage)
     if st is None and stage in ("hhi", "hsi", "fwsr"):

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import warnings
 from pathlib import Path
 
 import torch
@@ -51,9 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", required=True, help="model file to write")
     args = ap.parse_args(argv)
     try:
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message=".*untrained")
-            base, other = load_model(args.base), load_model(args.other)
+        base, other = load_model(args.base, warn_untrained=False), load_model(args.other, warn_untrained=False)
         merged = merge_stages(base, other, tuple(args.take))
         save_model(merged, Path(args.out))
     except RemogenError as exc:
