@@ -165,3 +165,12 @@ def test_targets_table_from_a_hand_made_report():
     assert "worst family (crossing at alpha 1; stand at alpha 0) | <= 1.3 | 1.40 | 1.20 |" in table
     assert "| standing drift per minute | <= 0.3 m | 0.25 m | 0.25 m |" in table
     assert "goal" not in table                                          # families not run are left out
+
+
+def test_targets_table_counts_the_text_family_among_the_seams():
+    from model_runtime.behaviour.tables import targets_table
+    fam = {"stand": {"alpha=1": {"seam_ratio": 1.16}, "alpha=0": {"seam_ratio": 1.16}},
+           "text": {"alpha=1": {"seam_ratio": 1.29}, "alpha=0": {"seam_ratio": 1.29}}}
+    table = targets_table({"split": "test", "families": fam})
+    assert "worst family (text at alpha 1; text at alpha 0) | <= 1.3 | 1.29 | 1.29 |" in table
+    assert "text 1.29 / 1.29" in table

@@ -103,7 +103,7 @@ def targets_table(report: dict) -> str:
     """The behaviour targets at alpha 1 and 0, with the worst seam ratio over the families run, and every
     family's seam ratio below it."""
     fam = report.get("families", {})
-    seams = {(f, a): _value(fam, f, a, "seam_ratio") for f in fam if f != "text" for a in (1, 0)}
+    seams = {(f, a): _value(fam, f, a, "seam_ratio") for f in fam for a in (1, 0)}
     seams = {k: v for k, v in seams.items() if v is not None}
     n = max((s.get("episodes", 0) for by in fam.values() for s in by.values()), default=0)
     control = {True: "control on", False: "control off"}.get(report.get("control"), "")
