@@ -77,6 +77,9 @@ def main(argv: list[str] | None = None) -> int:
                     "cuda or cuda:N")
     ap.add_argument("--workers", type=int, default=None,
                     help="background processes drawing batches (default: 8 on a GPU, 0 on the CPU)")
+    ap.add_argument("--snapshot-every", type=int, default=0, metavar="STEPS",
+                    help="also save the EMA model to OUT/snapshots/STAGE_STEP.pt every STEPS steps, to choose a "
+                         "checkpoint on the val split (python -m model_runtime.behaviour --split val --model FILE)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bars or status lines")
     args = ap.parse_args(argv)
     if args.threads:
@@ -112,7 +115,8 @@ def main(argv: list[str] | None = None) -> int:
             left = None if deadline is None else max((deadline - time.time()) / 60, 1e-3)
             runs.append(train_stage(st, out, lib, config=args.config, steps=args.steps, batch=args.batch,
                                     lr=args.lr, seed=args.seed, minutes=left, progress=progress,
-                                    mirror=not args.no_mirror, device=device, workers=workers))
+                                    mirror=not args.no_mirror, device=device, workers=workers,
+                                    snapshot_every=args.snapshot_every))
             if not runs[-1].finished:
                 break
     except RemogenError as exc:

@@ -333,3 +333,20 @@ def test_the_end_summary_points_to_the_next_required_stage_only(tmp_path):
     assert "next stage" not in after_fwsr and "decoder" not in after_fwsr     # the optional stage is not the next one
     after_decoder = summary([run("decoder")], REQUIRED_STAGES, ["decoder", "--out", str(tmp_path)], 1)
     assert "next stage" not in after_decoder and "saved:" in after_decoder
+
+
+def test_snapshots_hold_the_ema_model_at_their_step(tmp_path, lib):
+    out = tmp_path / "run"
+    train_stage("vae", out, lib, config="tiny", steps=1, batch=8, val_every=1, val_batches=1, progress=False)
+    train_stage("prior", out, lib, config="tiny", steps=4, batch=8, val_every=2, val_batches=1, progress=False,
+                snapshot_every=2)
+    snaps = sorted(p.name for p in (out / "snapshots").iterdir())
+    assert snaps == ["prior_000002.pt"]               # the last step is the model file itself, not a snapshot
+    snap, final = load_model(out / "snapshots" / snaps[0]), load_model(out / "model.pt")
+    assert snap.meta["stages"]["prior"]["steps"] == 2 and final.meta["stages"]["prior"]["steps"] == 4
+    assert snap.meta["stages"]["prior"]["val_loss"] is not None   # read from the log at that step
+    # the snapshot holds EMA weights of step 2, neither the initial nor the final ones
+    sd, fd = snap.denoiser.state_dict(), final.denoiser.state_dict()
+    assert any(not torch.equal(sd[k], fd[k]) for k in sd)
+    vs, vf = snap.vae.state_dict(), final.vae.state_dict()
+    assert all(torch.equal(vs[k], vf[k]) for k in vs)   # frozen stages are untouched

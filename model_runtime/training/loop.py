@@ -1,5 +1,6 @@
 """One stage's training loop: run or resume, validate with the EMA weights, save a resumable state every few
-minutes and the EMA model at the end; under torchrun the ranks train data-parallel and stop together."""
+minutes and the EMA model at the end (and, when asked, every N steps, so a checkpoint can be chosen on the
+behaviour suite's val split); under torchrun the ranks train data-parallel and stop together."""
 from __future__ import annotations
 
 import gc
@@ -36,11 +37,12 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                 batch: int | None = None, lr: float | None = None, seed: int = 0, minutes: float | None = None,
                 ckpt_minutes: float = 3.0, val_every: int = 250, val_batches: int = 4,
                 progress: bool = True, mirror: bool = True, device: str | torch.device = "cpu",
-                workers: int = 0) -> StageRun:
+                workers: int = 0, snapshot_every: int = 0) -> StageRun:
     """Run (or resume) one stage: what was written and how far it got.
 
     device: where the model trains ("cpu", "cuda", "cuda:1"); the checkpoint files hold CPU tensors either way.
     workers: background processes that draw the batches (training/prefetch.py); 0 draws them in this one.
+    snapshot_every: also write the EMA model to OUT/snapshots/STAGE_STEP.pt every this many steps (0: never).
     """
     device = torch.device(device)
     if stage not in STAGES:
@@ -109,6 +111,30 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     t_start, last_ckpt = time.time(), time.time()
     deadline = t_start + minutes * 60 if minutes else None
 
+    def stage_meta(at_step: int, wall_s: float) -> dict:
+        """The model file's meta after this stage: its steps, hardware and held-out loss, data and licence."""
+        meta = dict(model.meta)
+        stages = dict(meta.get("stages", {}))
+        stages[stage] = {"steps": at_step, "wall_s": round(wall_s, 1), "batch": batch,
+                         "lr": lr, "world_size": world, "clips": len(lib.split("train")),
+                         "device": device_name(device), "workers": workers,
+                         "val_loss": ([None] + [v for _, v in validation_history(log_path)])[-1]}
+        if stage in TEXT_STAGES:
+            stages[stage]["text_drop"] = TEXT_DROP
+        # a VAE copied from another file (--init-vae) brings its own data: its licence carries over
+        sources = set(lib.sources) | set(meta.get("sources", []))
+        meta.update({"trained": True, "stages": stages, "sources": sorted(sources),
+                     "non_commercial": "bandai" in sources or bool(meta.get("non_commercial", False))})
+        return meta
+
+    def save_snapshot() -> None:
+        ema.swap()
+        try:
+            save_model(model, out / "snapshots" / f"{stage}_{step:06d}.pt",
+                       meta=stage_meta(step, wall + time.time() - t_start))
+        finally:
+            ema.swap()
+
     def save_state() -> None:
         if rank != 0:
             return
@@ -140,6 +166,9 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                         bar.update(1)
                         bar.set_postfix(loss=f"{row['loss']:.4f}", **({"val": f"{row['val_loss']:.4f}"}
                                                                       if "val_loss" in row else {}))
+                if snapshot_every and step % snapshot_every == 0 and not last and rank == 0:
+                    log.flush()   # the snapshot's held-out loss is read back from the log
+                    save_snapshot()
                 if time.time() - last_ckpt > ckpt_minutes * 60:
                     log.flush()
                     save_state()
@@ -161,19 +190,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         model.cpu()   # the model file holds CPU tensors whatever trained it
         if stage == "decoder":     # FWSR's damping reads the decoder's sensitivity: measure the new decoder's
             decoder_sensitivity(model, lib, seed)
-        meta = dict(model.meta)
-        stages = dict(meta.get("stages", {}))
-        stages[stage] = {"steps": step, "wall_s": round(wall + time.time() - t_start, 1), "batch": batch,
-                         "lr": lr, "world_size": world, "clips": len(lib.split("train")),
-                         "device": device_name(device), "workers": workers,
-                         "val_loss": ([None] + [v for _, v in validation_history(log_path)])[-1]}
-        if stage in TEXT_STAGES:
-            stages[stage]["text_drop"] = TEXT_DROP
-        # a VAE copied from another file (--init-vae) brings its own data: its licence carries over
-        sources = set(lib.sources) | set(meta.get("sources", []))
-        meta.update({"trained": True, "stages": stages, "sources": sorted(sources),
-                     "non_commercial": "bandai" in sources or bool(meta.get("non_commercial", False))})
-        model.meta = meta
+        model.meta = stage_meta(step, wall + time.time() - t_start)
         save_model(model, model_path)
         model.to(device)
         ema.swap()
