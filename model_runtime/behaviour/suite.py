@@ -133,15 +133,16 @@ def run_suite(model, split: str, *, families: Iterable[str] = FAMILIES, episodes
     tracks: dict = {}
     for family in families:
         eps = draw_episodes(family, split) if episodes is None else draw_episodes(family, split, episodes)
-        rolled: tuple[float, list[dict]] | None = None
+        # nothing for the interaction modules or their costs to act on: every alpha rolls out the same frames
+        # (tests/test_behaviour_suite.py checks it), so the first alpha's rollouts serve them all
+        cue_free = not any(has_cue(ep) for ep in eps)
+        first: float | None = None
         for alpha in alphas:
-            if rolled is not None and not any(has_cue(ep) for ep in eps):
-                # nothing for the interaction modules or their costs to act on: every alpha rolls out the same
-                # frames (tests/test_behaviour_suite.py checks it), so the first alpha's episodes serve them all
-                first, results = rolled
-                summary = dict(summarise(family, results), seconds=0.0, same_as=f"alpha={first:g}")
-                tracks.setdefault(family, {})[alpha] = tracks.get(family, {}).get(first, [])
-                report["families"].setdefault(family, {})[f"alpha={alpha:g}"] = summary
+            if cue_free and first is not None:
+                done = report["families"][family]
+                done[f"alpha={alpha:g}"] = dict(done[f"alpha={first:g}"], seconds=0.0, same_as=f"alpha={first:g}")
+                if first in tracks.get(family, {}):   # none kept with keep_tracks=0
+                    tracks[family][alpha] = tracks[family][first]
                 if progress is not None:
                     progress(f"{family} alpha={alpha:g}: the alpha={first:g} rollouts (no partner, goal or scene)")
                 continue
@@ -153,7 +154,7 @@ def run_suite(model, split: str, *, families: Iterable[str] = FAMILIES, episodes
                 results.append(r)
                 if k < keep_tracks:
                     tracks.setdefault(family, {}).setdefault(alpha, []).append((ep, ego))
-            rolled = rolled or (alpha, results)
+            first = alpha if first is None else first
             summary = summarise(family, results)
             summary["seconds"] = round(time.perf_counter() - t0, 1)
             report["families"].setdefault(family, {})[f"alpha={alpha:g}"] = summary
