@@ -61,6 +61,25 @@ def test_vae_and_prior_stages_train_resume_and_save(tmp_path, lib):
     assert not torch.equal(model.stats.std, torch.ones(276))  # stats were fitted in the vae stage
 
 
+def test_a_prior_trained_again_continues_from_its_weights_and_records_them(tmp_path, lib):
+    import shutil
+    out = tmp_path / "run"
+    train_stage("vae", out, lib, config="tiny", steps=2, batch=8, val_every=2, val_batches=1, progress=False)
+    train_stage("prior", out, lib, config="tiny", steps=3, batch=8, val_every=3, val_batches=1, progress=False)
+    first = load_model(out / "model.pt")
+    again = tmp_path / "again"
+    again.mkdir()
+    shutil.copy(out / "model.pt", again / "model.pt")     # a fine-tune: a trained file, no state of the stage
+    train_stage("prior", again, lib, config="tiny", steps=2, batch=8, val_every=2, val_batches=1, progress=False,
+                lr=1e-9)
+    tuned = load_model(again / "model.pt")
+    record = tuned.meta["stages"]["prior"]
+    assert record["steps"] == 2 and record["started_from"]["steps"] == 3
+    # it started from the trained weights (a learning rate of 1e-9 barely moves them), not from fresh ones
+    for a, b in zip(first.denoiser.parameters(), tuned.denoiser.parameters()):
+        assert torch.allclose(a, b, atol=1e-5)
+
+
 def test_later_stage_without_earlier_says_so(tmp_path, lib):
     from model_runtime.errors import RemogenError
     with pytest.raises(RemogenError, match="train the stages before"):

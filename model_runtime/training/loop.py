@@ -73,6 +73,9 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         model = load_model(model_path, warn_untrained=False)   # its later stages are untrained by design
     params = freeze_for(model, stage)
     module = trainable_module(model, stage)
+    # a run of a prior or decoder stage that model.pt already holds continues from those weights (a fine-tune): the
+    # file then records what it started from (the adapters start over, below; the meta is updated at the end)
+    started_from = model.meta.get("stages", {}).get(stage) if stage in ("prior", "decoder") else None
     if st is None and stage in ("hhi", "hsi", "fwsr"):
         # A fresh start of an adapter stage re-initialises the whole module (seeded), so the result does not
         # depend on an earlier run's weights left in model.pt (measured: HHI warm-started from a run with
@@ -121,6 +124,8 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                          "val_loss": ([None] + [v for _, v in validation_history(log_path)])[-1]}
         if stage in TEXT_STAGES:
             stages[stage]["text_drop"] = TEXT_DROP
+        if started_from:
+            stages[stage]["started_from"] = {k: v for k, v in started_from.items() if k != "started_from"}
         # a VAE copied from another file (--init-vae) brings its own data: its licence carries over
         sources = set(lib.sources) | set(meta.get("sources", []))
         meta.update({"trained": True, "stages": stages, "sources": sorted(sources),

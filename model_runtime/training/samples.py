@@ -20,11 +20,12 @@ import numpy as np
 import torch
 
 from ..config import ModelConfig
-from ..data.library import ClipLibrary
+from ..data.library import ClipLibrary, derived_kind
 from ..data.phrasings import pick_phrasing
 from ..features import JOINT_DELTA, ROOT_T, FeatureStats, canonicalize, to_canonical, world_points_to_canonical
 from ..skeleton import NUM_JOINTS, forward_kinematics
-from .recipe import STILL_CAPTION, STILL_SHARE, STILL_SPEED, STILL_TRAVEL
+from .recipe import (SLOW_WALK_CAPTION, SLOW_WALK_HEADS, SLOW_WALK_SHARE, SLOW_WALK_SPEED,
+                     STARTUP_WEIGHT, STILL_CAPTION, STILL_SHARE, STILL_SPEED, STILL_TRAVEL)
 
 FPS = 10.0
 
@@ -36,6 +37,37 @@ def is_still(window: torch.Tensor) -> bool:
     steps = window[:, JOINT_DELTA].reshape(window.shape[0], NUM_JOINTS, 3)
     return travel < STILL_TRAVEL and float(torch.linalg.vector_norm(steps, dim=-1).mean()) * FPS < STILL_SPEED
 
+
+def caption_head(caption: str) -> str:
+    """The caption without its style: 'a person walks forward, tired' -> 'a person walks forward'."""
+    return caption.split(", ", 1)[0]
+
+
+def caption_balance(lib: ClipLibrary, clips: list[int], power: float) -> np.ndarray:
+    """(len(clips),) factors: each clip's caption head's frame count (over `clips`) to the power -`power`, scaled
+    to a mean of 1 (all ones for power 0). recipe.CAPTION_BALANCE says why."""
+    if power == 0.0 or not clips:
+        return np.ones(len(clips))
+    heads = [caption_head(lib.captions[i]) for i in clips]
+    frames: dict[str, int] = {}
+    for i, h in zip(clips, heads):
+        frames[h] = frames.get(h, 0) + lib.frames(i)
+    f = np.array([float(frames[h]) ** -power for h in heads])
+    return f / f.mean()
+
+
+def window_speed(window: torch.Tensor) -> float:
+    """m/s of a window's pelvis from its first to its last frame (floor plane)."""
+    travel = float(torch.linalg.vector_norm(window[-1, ROOT_T][:2] - window[0, ROOT_T][:2]))
+    return travel * FPS / max(1, window.shape[0] - 1)
+
+
+def slow_walk_caption(caption: str) -> str | None:
+    """SLOW_WALK_CAPTION with the caption's style ('a person walks forward, tired' -> 'a person walks slowly,
+    tired'), or None when the caption is not a plain walk (SLOW_WALK_HEADS)."""
+    head, sep, style = caption.partition(", ")
+    return SLOW_WALK_CAPTION + sep + style if head in SLOW_WALK_HEADS else None
+
 INTERACTION_RANGE = 2.5   # m between the pelvises: the partner is close enough to shape the next segment
 INTERACTION_SHARE = 0.5   # share of HHI windows drawn among those in range
 GOAL_RANGE = 1.0          # m from the pelvis to the goal (floor plane): the goal decides how the segment ends
@@ -43,6 +75,8 @@ GOAL_SHARE = 0.5          # share of HSI windows drawn among those that reach it
 # Detour scenes (data/detours.py) are the only ones whose box stands on the path to the goal, about 1 in 10
 # windows by frame count; drawn 3x as often so that walking around something is not a rare event.
 SCENE_KIND_WEIGHT = {"detour": 3.0}
+# Derived clips drawn more or less often than their frame count (library.derived_kind -> factor).
+CLIP_KIND_WEIGHT = {"startup": STARTUP_WEIGHT}
 
 
 @dataclass
@@ -74,9 +108,10 @@ class SegmentSampler:
 
     def __init__(self, lib: ClipLibrary, clip_ids: list[int], cfg: ModelConfig, stats: FeatureStats,
                  seed: int = 0, pairs: list | None = None, scenes: list | None = None,
-                 still_share: float = STILL_SHARE) -> None:
+                 still_share: float = STILL_SHARE, slow_walk_share: float = SLOW_WALK_SHARE,
+                 caption_balance_power: float = 0.0) -> None:
         self.lib, self.cfg, self.stats = lib, cfg, stats
-        self.still_share = still_share
+        self.still_share, self.slow_walk_share = still_share, slow_walk_share
         self.pairs, self.scenes = pairs, scenes
         self.span = cfg.history + cfg.future
         if pairs is not None:
@@ -92,6 +127,9 @@ class SegmentSampler:
         weights = np.array([lib.frames(i) - self.span for i, _ in self.items], np.float64)
         if scenes is not None:
             weights *= np.array([SCENE_KIND_WEIGHT.get(scenes[k].kind, 1.0) for _, k in self.items])
+        else:
+            weights *= np.array([CLIP_KIND_WEIGHT.get(derived_kind(lib.names[i]), 1.0) for i, _ in self.items])
+            weights *= caption_balance(lib, [i for i, _ in self.items], caption_balance_power)
         self.weights = torch.from_numpy(weights / weights.sum())
         self.gen = torch.Generator().manual_seed(seed)
         self._partner_cache: dict[int, torch.Tensor] = {}
@@ -136,11 +174,18 @@ class SegmentSampler:
 
     def _caption(self, window: torch.Tensor, clip: int) -> str:
         """The caption a window trains with (one of its phrasings is drawn after): its clip's, or, for a window
-        whose body keeps still, STILL_CAPTION a share of the time (recipe.py says why)."""
+        whose body keeps still, STILL_CAPTION a share of the time, or, for a plain walk at a slow pace,
+        SLOW_WALK_CAPTION a share of the time (recipe.py says why for both)."""
         if self.still_share > 0.0 and is_still(window) and \
                 float(torch.rand((), generator=self.gen)) < self.still_share:
             return STILL_CAPTION
-        return self.lib.captions[clip]
+        caption = self.lib.captions[clip]
+        if self.slow_walk_share > 0.0:
+            slow = slow_walk_caption(caption)
+            if slow is not None and SLOW_WALK_SPEED[0] <= window_speed(window) <= SLOW_WALK_SPEED[1] and \
+                    float(torch.rand((), generator=self.gen)) < self.slow_walk_share:
+                return slow
+        return caption
 
     def _partner_world(self, k: int) -> torch.Tensor:
         if k not in self._partner_cache:

@@ -11,7 +11,7 @@ from ..config import ModelConfig
 from ..data.library import ClipLibrary
 from ..errors import RemogenError
 from ..model import ReMoGenModel
-from .recipe import MIRROR_STAGES
+from .recipe import CAPTION_BALANCE, MIRROR_STAGES, STARTUP_STAGES
 from .samples import SegmentSampler
 
 
@@ -68,6 +68,13 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         train_ids = train_ids + [i for i in mirrored if not lib.is_held_out(i)]
         val_ids = val_ids + [i for i in mirrored if lib.is_held_out(i)]
         note(f"{len(mirrored)} mirrored copies of real clips")
+    if stage in STARTUP_STAGES:
+        # standing, then setting off: no clip starts from standing, every ego does (data/startups.py)
+        from ..data.startups import add_startups
+        lib, started = add_startups(lib, train_ids + val_ids, seed=seed)
+        train_ids = train_ids + [i for i in started if not lib.is_held_out(i)]
+        val_ids = val_ids + [i for i in started if lib.is_held_out(i)]
+        note(f"{len(started)} start-up copies (standing, then setting off)")
     pairs_tr = pairs_va = scenes_tr = scenes_va = None
     if stage in ("hhi", "fwsr"):
         from ..data.hhi_copies import add_hhi_copies
@@ -93,8 +100,9 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         note(f"{len(scenes_tr)} training and {len(scenes_va)} held-out HSI scenes")
     # the samplers keep a CPU copy of the statistics: the model itself may move to a GPU after this
     stats = copy.deepcopy(model.stats).cpu()
+    # caption balance for the prior's training windows only: held-out losses stay comparable across recipes
     tr = SegmentSampler(lib, train_ids, model.cfg, stats, seed=seed * 1000 + rank, pairs=pairs_tr,
-                        scenes=scenes_tr)
+                        scenes=scenes_tr, caption_balance_power=CAPTION_BALANCE if stage == "prior" else 0.0)
     if pairs_va == [] or scenes_va == []:
         note(f"note: no held-out clip fits the {stage} stage's rules: it trains without a held-out loss")
         return tr, None
