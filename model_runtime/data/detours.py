@@ -112,6 +112,16 @@ def place_stand(rotations: np.ndarray, pelvis: np.ndarray, joints0: np.ndarray, 
     return rot, pel
 
 
+def cross_fade(a_rot: np.ndarray, a_pel: np.ndarray, b_rot: np.ndarray, b_pel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Frames going from poses a to poses b (both (n, 22, 4) w-first and (n, 3)): slerp / lerp with smoothstep
+    weights rising over the n frames, never exactly 0 or 1. Returned in a's dtypes."""
+    n = len(a_pel)
+    w = smoothstep(np.arange(1, n + 1) / (n + 1))
+    rot = quat_slerp(torch.from_numpy(a_rot.astype(np.float64)), torch.from_numpy(b_rot.astype(np.float64)),
+                     torch.from_numpy(w[:, None, None])).numpy().astype(a_rot.dtype)
+    return rot, ((1 - w[:, None]) * a_pel + w[:, None] * b_pel).astype(a_pel.dtype)
+
+
 def arrive(walk_rot: np.ndarray, walk_pel: np.ndarray, stand_rot: np.ndarray, stand_pel: np.ndarray,
            stand_joints0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A walk slowed to rest, then cross-faded into a standing clip placed where and as the walk stopped."""
@@ -120,11 +130,8 @@ def arrive(walk_rot: np.ndarray, walk_pel: np.ndarray, stand_rot: np.ndarray, st
                                torch.from_numpy(pel[-1:].astype(np.float64)))[0][0].numpy()
     s_rot, s_pel = place_stand(stand_rot, stand_pel, stand_joints0, pel[-1, :2].astype(np.float64),
                                facing_xy(j_end[None])[0])
-    w = smoothstep(np.arange(1, BLEND_FRAMES + 1) / (BLEND_FRAMES + 1))
-    b_rot = quat_slerp(torch.from_numpy(np.repeat(rot[-1:], BLEND_FRAMES, 0).astype(np.float64)),
-                       torch.from_numpy(s_rot[:BLEND_FRAMES].astype(np.float64)),
-                       torch.from_numpy(w[:, None, None])).numpy().astype(rot.dtype)
-    b_pel = ((1 - w[:, None]) * pel[-1] + w[:, None] * s_pel[:BLEND_FRAMES]).astype(pel.dtype)
+    b_rot, b_pel = cross_fade(np.repeat(rot[-1:], BLEND_FRAMES, 0), np.repeat(pel[-1:], BLEND_FRAMES, 0),
+                              s_rot[:BLEND_FRAMES], s_pel[:BLEND_FRAMES])
     return (np.concatenate((rot, b_rot, s_rot[BLEND_FRAMES:])),
             np.concatenate((pel, b_pel, s_pel[BLEND_FRAMES:])))
 

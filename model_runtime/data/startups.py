@@ -23,19 +23,16 @@ their mirrored copies (data/mirror.py), so set-offs are as often to the left as 
 from __future__ import annotations
 
 import numpy as np
-import torch
 
-from ..skeleton import quat_slerp
-from .detours import place_stand, resample
+from .detours import BLEND_FRAMES, cross_fade, place_stand, resample
 from .library import DERIVED, ClipLibrary, derived_kind, is_derived, source_name
+from .new_clips import NewClip, extend_library, new_clip
 from .pairs import FPS, ClipCache, facing_xy, is_gesture
 from .stretches import calm_standing
-from .turns import smoothstep
 
 START_SPEED = 0.5           # m/s of pelvis travel over a source's first START_FRAMES frames: it starts moving
 START_FRAMES = 5
 SPEED_IN, SPEED_OUT = 4, 8  # the first SPEED_IN steps are played over SPEED_OUT frames (rate 0 -> 1)
-BLEND_FRAMES = 5
 # Short copies: what they teach is the set-off; longer ones made a third of the prior's frames (measured on the 4 h
 # library with (10, 20) / (20, 30)) and would tilt the prior toward setting off.
 STAND_FRAMES = (8, 14)      # frames of standing before the cross-fade
@@ -62,11 +59,8 @@ def set_off(stand_rot: np.ndarray, stand_pel: np.ndarray, stand_joints_last: np.
                                move_pel[0, :2].astype(np.float64), facing_xy(move_joints0[None].astype(np.float64))[0])
     s_rot, s_pel = s_rot[::-1], s_pel[::-1]
     m_rot, m_pel = speed_up_from_rest(move_rot, move_pel)
-    w = smoothstep(np.arange(1, BLEND_FRAMES + 1) / (BLEND_FRAMES + 1))
-    b_rot = quat_slerp(torch.from_numpy(s_rot[-BLEND_FRAMES:].astype(np.float64)),
-                       torch.from_numpy(np.repeat(m_rot[:1], BLEND_FRAMES, 0).astype(np.float64)),
-                       torch.from_numpy(w[:, None, None])).numpy().astype(move_rot.dtype)
-    b_pel = ((1 - w[:, None]) * s_pel[-BLEND_FRAMES:] + w[:, None] * m_pel[0]).astype(move_pel.dtype)
+    b_rot, b_pel = cross_fade(s_rot[-BLEND_FRAMES:], s_pel[-BLEND_FRAMES:],
+                              np.repeat(m_rot[:1], BLEND_FRAMES, 0), np.repeat(m_pel[:1], BLEND_FRAMES, 0))
     return (np.concatenate((s_rot[:-BLEND_FRAMES], b_rot, m_rot)).astype(move_rot.dtype),
             np.concatenate((s_pel[:-BLEND_FRAMES], b_pel, m_pel)).astype(move_pel.dtype))
 
@@ -90,10 +84,7 @@ def add_startups(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[
     stands = [i for i in calm_standing(lib, clips, ids, STAND_FRAMES[1] + BLEND_FRAMES)
               if not is_gesture(lib.captions[i]) and lib.pelvis[lib.offsets[i]:lib.offsets[i + 1], 2].min() > STAND_HEIGHT]
     pools = {side: [i for i in stands if lib.is_held_out(i) == side] for side in (False, True)}
-    names, caps, srcs = list(lib.names), list(lib.captions), list(lib.sources)
-    rots, pels, off = [lib.rotations], [lib.pelvis], list(lib.offsets)
-    errors = list(lib.fit_error_mm) if lib.fit_error_mm else []
-    new: list[int] = []
+    copies: list[NewClip] = []
     for i in movers:
         pool = pools[lib.is_held_out(i)]
         if not pool:
@@ -108,14 +99,6 @@ def add_startups(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[
                            clips.joints(s)[s0 + sn - 1], lib.rotations[a:a + mn], lib.pelvis[a:a + mn],
                            clips.joints(i)[0])
         # `<source>#startup0` from the real clip, `<source>#startup1` from its mirrored copy
-        names.append(f"{source_name(lib.names[i])}{DERIVED}startup{int(derived_kind(lib.names[i]) == 'mirror')}")
-        caps.append(lib.captions[i])
-        srcs.append(lib.sources[i])
-        if errors:
-            errors.append(lib.fit_error_mm[i])
-        rots.append(rot)
-        pels.append(pel)
-        off.append(off[-1] + len(pel))
-        new.append(len(names) - 1)
-    out = ClipLibrary(names, caps, srcs, np.concatenate(rots), np.concatenate(pels), np.asarray(off, np.int64), errors)
-    return out, new
+        name = f"{source_name(lib.names[i])}{DERIVED}startup{int(derived_kind(lib.names[i]) == 'mirror')}"
+        copies.append(new_clip(lib, i, name, lib.captions[i], rot, pel))
+    return extend_library(lib, copies)

@@ -22,6 +22,7 @@ import torch
 from ..config import ModelConfig
 from ..data.library import ClipLibrary, derived_kind
 from ..data.phrasings import pick_phrasing
+from ..data.stretches import split_style
 from ..features import JOINT_DELTA, ROOT_T, FeatureStats, canonicalize, to_canonical, world_points_to_canonical
 from ..skeleton import NUM_JOINTS, forward_kinematics
 from .recipe import (SLOW_WALK_CAPTION, SLOW_WALK_HEADS, SLOW_WALK_SHARE, SLOW_WALK_SPEED,
@@ -40,7 +41,7 @@ def is_still(window: torch.Tensor) -> bool:
 
 def caption_head(caption: str) -> str:
     """The caption without its style: 'a person walks forward, tired' -> 'a person walks forward'."""
-    return caption.split(", ", 1)[0]
+    return split_style(caption)[0]
 
 
 def caption_balance(lib: ClipLibrary, clips: list[int], power: float) -> np.ndarray:
@@ -65,8 +66,8 @@ def window_speed(window: torch.Tensor) -> float:
 def slow_walk_caption(caption: str) -> str | None:
     """SLOW_WALK_CAPTION with the caption's style ('a person walks forward, tired' -> 'a person walks slowly,
     tired'), or None when the caption is not a plain walk (SLOW_WALK_HEADS)."""
-    head, sep, style = caption.partition(", ")
-    return SLOW_WALK_CAPTION + sep + style if head in SLOW_WALK_HEADS else None
+    head, style = split_style(caption)
+    return SLOW_WALK_CAPTION + (f", {style}" if style else "") if head in SLOW_WALK_HEADS else None
 
 INTERACTION_RANGE = 2.5   # m between the pelvises: the partner is close enough to shape the next segment
 INTERACTION_SHARE = 0.5   # share of HHI windows drawn among those in range
