@@ -78,12 +78,18 @@ class ControlConfig:
                                     # buys less sliding by slowing the body down: "a person runs" 1.21 -> 0.27
                                     # m/s on val); 0 moves the legs against the pelvis only
     floor_weight: float = 40.0
+    glide_weight: float = 0.0       # with a partner: pelvis accelerations past glide_accel, so that a dodge is
+    glide_accel: float = 10.0       # walked, not glided (m/s^2; egos dodging one another moved their pelvis 4-10
+                                    # m/s between two frames; real clips' pelvis accelerations: 99.9 % under 8)
 
     def __post_init__(self) -> None:
         from .errors import InputError
         for name, value in vars(self).items():
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
                 raise InputError(f"control config: {name} = {value!r} must be a finite number >= 0")
+
+
+NORM_EPS = 1e-12      # under a square root whose hinge is zero near zero: only keeps its gradient finite
 
 
 def _smooth_norm(v: torch.Tensor, eps: float = 0.05) -> torch.Tensor:
@@ -158,6 +164,15 @@ def seam_cost(joints: torch.Tensor, before: torch.Tensor, earlier: torch.Tensor)
     at_history = joints[..., 0, :, :] - 2.0 * before + earlier
     at_first = joints[..., 1, :, :] - 2.0 * joints[..., 0, :, :] + before
     return at_history.pow(2).sum((-2, -1)) + at_first.pow(2).sum((-2, -1))
+
+
+def glide_cost(pelvis_xy: torch.Tensor, history_xy: torch.Tensor, limit: float) -> torch.Tensor:
+    """Horizontal pelvis accelerations past `limit` (m per frame^2): sum of squared excess. pelvis_xy (..., T, 2)
+    the segment's pelvis path, history_xy (..., H, 2) the history's last frames before it (oldest first)."""
+    path = torch.cat((history_xy, pelvis_xy), -2)
+    acc = path[..., 2:, :] - 2.0 * path[..., 1:-1, :] + path[..., :-2, :]
+    size = torch.sqrt((acc * acc).sum(-1) + NORM_EPS)
+    return torch.relu(size - limit).pow(2).sum(-1)
 
 
 def foot_cost(joints: torch.Tensor, before: torch.Tensor, cfg: ControlConfig) -> torch.Tensor:
@@ -308,6 +323,7 @@ class SegmentCosts:
         hist = stats.denormalize(hist_n)
         self.before_joints = feature_joints(hist[:, -1])
         self.before_xy = hist[:, -1, ROOT_T][:, :2]
+        self.history_xy = hist[:, -2:, ROOT_T][..., :2]      # the pelvis path the segment's path continues
         self.earlier_joints = feature_joints(hist[:, -2]) if hist.shape[1] >= 2 else None
         ts = list(targets) if isinstance(targets, (list, tuple)) else [targets] * hist_n.shape[0]
         p = self.partner = _Rows([t.partner is not None and t.alpha_hhi > 0.0 for t in ts])
@@ -358,6 +374,9 @@ class SegmentCosts:
                 partner = w.add(partner, cfg.pass_weight * passing)
             partner = _plus_where(partner, self.still, lambda: cfg.face_weight * facing_cost(
                 mine, self.partner_future[:, -1, 0, :2]))
+            if cfg.glide_weight > 0.0:
+                partner = partner + cfg.glide_weight * glide_cost(p.of(feat[..., ROOT_T][..., :2]),
+                                                                  p.of(self.history_xy), cfg.glide_accel / FPS ** 2)
             cost = p.add(cost, self.alpha_hhi * partner)
         s = self.scene
         if s.any:
@@ -388,7 +407,7 @@ class SegmentCosts:
             return c
         n = lambda t: t.detach().double().numpy()   # noqa: E731
         c = {"mean": n(self.stats.mean), "std": n(self.stats.std), "before": n(self.before_joints),
-             "before_xy": n(self.before_xy), "earlier": None if self.earlier_joints is None else n(self.earlier_joints),
+             "before_xy": n(self.before_xy), "history_xy": n(self.history_xy), "earlier": None if self.earlier_joints is None else n(self.earlier_joints),
              "keep": None if self.keep is None else n(self.keep)}
         if self.partner.any:
             c["future"] = n(self.partner_future)
@@ -450,6 +469,10 @@ class SegmentCosts:
                 fc, fg = cg.facing(mine, future[:, -1, 0, :2])
                 pc = pc + np.where(c["still"], cfg.face_weight * fc, 0.0)
                 pg = pg + np.where(c["still"][:, None, None, None], cfg.face_weight * fg, 0.0)
+            if cfg.glide_weight > 0.0:
+                gc, gg = cg.glide(pelvis[p.rows][..., :2], c["history_xy"][p.rows], cfg.glide_accel / FPS ** 2)
+                pc = pc + cfg.glide_weight * gc
+                pr[..., :2] += cfg.glide_weight * gg
             cost[p.rows] += _per_row(self.alpha_hhi, 0) * pc
             g_j[p.rows] += _per_row(self.alpha_hhi, 3) * pg
             g_root[p.rows] += _per_row(self.alpha_hhi, 2) * pr

@@ -15,6 +15,7 @@ from .joints import LEFT_HIP, RIGHT_HIP, SOLE_BELOW_FOOT_JOINT
 FPS = 10.0
 SMOOTH_EPS = 0.05      # control._smooth_norm's rounded bottom
 NORMALIZE_EPS = 1e-6   # torch.nn.functional.normalize's eps in control.py
+NORM_EPS = 1e-12       # control.NORM_EPS
 
 
 # ---------------------------------------------------------------------------------------------- helpers
@@ -82,6 +83,21 @@ def seam(joints: np.ndarray, before: np.ndarray, earlier: np.ndarray) -> tuple[n
     grad[:, 0] += 2.0 * at_history - 4.0 * at_first
     grad[:, 1] += 2.0 * at_first
     return cost, grad
+
+
+def glide(pelvis_xy: np.ndarray, history_xy: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """control.glide_cost and its gradient with respect to pelvis_xy (R, T, 2); history_xy (R, H, 2)."""
+    h = history_xy.shape[1]
+    path = np.concatenate((history_xy, pelvis_xy), 1)
+    acc = path[:, 2:] - 2.0 * path[:, 1:-1] + path[:, :-2]
+    size = np.sqrt((acc * acc).sum(-1) + NORM_EPS)
+    excess = np.maximum(size - limit, 0.0)
+    g_acc = (2.0 * excess / size)[..., None] * acc
+    g_path = np.zeros_like(path)
+    g_path[:, 2:] += g_acc
+    g_path[:, 1:-1] -= 2.0 * g_acc
+    g_path[:, :-2] += g_acc
+    return (excess * excess).sum(-1), g_path[:, h:]
 
 
 def partner(joints: np.ndarray, future: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray]:

@@ -66,6 +66,15 @@ def test_seam_ratio_sees_a_pop_every_segment():
     assert M.seam_ratio(popping) == pytest.approx(3.0)
 
 
+def test_peak_pelvis_speed_finds_the_one_glided_step():
+    walk = np.tile(standing_body()[None], (20, 1, 1))
+    walk[:, :, 1] += (np.arange(20) * 0.12)[:, None]        # 1.2 m/s along +Y
+    assert M.peak_pelvis_speed(walk) == pytest.approx(1.2)
+    walk[12:, :, 0] += 0.5                                   # 0.5 m sideways between frames 11 and 12
+    assert M.peak_pelvis_speed(walk) == pytest.approx(math.hypot(5.0, 1.2)) and M.peak_pelvis_speed(walk) > M.GLIDE_SPEED
+    assert M.peak_pelvis_speed(walk[:1]) == 0.0
+
+
 def test_planted_toe_speed_counts_only_planted_toes():
     j = np.tile(standing_body()[None], (11, 1, 1))
     toes = list(M.TOES)

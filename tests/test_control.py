@@ -158,6 +158,24 @@ def test_seam_cost_is_zero_for_a_steady_motion_and_grows_with_a_jump(tiny_model)
     assert -g[0].sum() < 0                # the jumped first frame is pulled back toward the steady path
 
 
+def test_glide_cost_is_zero_for_walking_and_turning_and_grows_with_a_glide():
+    """Accelerations under the limit cost nothing; a 0.3 m jump between two frames costs its excess at both of its
+    accelerations (in, then out), and its gradient pulls the jumped frames back."""
+    from model_runtime.control import glide_cost
+    limit = 0.1                                                       # 10 m/s^2 at 10 fps
+    history = torch.tensor([[0.0, 0.0], [0.0, -0.12]])
+    walk = torch.stack([torch.zeros(8), -0.12 * torch.arange(2, 10)], -1)
+    turning = walk.clone()
+    turning[:, 0] = 0.01 * torch.arange(1, 9) ** 2 / 2               # 1 m/s^2 sideways
+    assert float(glide_cost(walk, history, limit)) == 0.0 == float(glide_cost(turning, history, limit))
+    glided = walk.clone()
+    glided[4:, 0] += 0.3
+    assert float(glide_cost(glided, history, limit)) == pytest.approx(2 * 0.2 ** 2, rel=1e-5)
+    x = glided.clone().requires_grad_(True)
+    (g,) = torch.autograd.grad(glide_cost(x, history, limit), x)
+    assert g[4, 0] > 0.0 > g[3, 0]           # the glide's two sides are pulled toward each other
+
+
 def test_steps_per_frame_spreads_every_step_and_evens_out_steered_ones():
     assert steps_per_frame(10, 8, 0) in ((1, 1, 1, 1, 1, 1, 2, 2), (0, 1, 1, 1, 1, 2, 2, 2))
     split = steps_per_frame(18, 8, 12)          # 6 plain steps, then 12 steered ones (2.5 plain steps each)

@@ -53,12 +53,13 @@ def batch(stats: FeatureStats, keep: bool, body_share: float = 0.0):
     g = torch.Generator().manual_seed(7)
     scene = box_scene()
     field, floor = DistanceField(scene), FloorMap(scene)
-    cfg = ControlConfig(skate_body_share=body_share)
+    cfg = ControlConfig(skate_body_share=body_share, glide_weight=50.0)
     segs = torch.stack([walking_segment(g, (0.1, -0.6), (0.0, -0.08)),     # walks into the box, partner beside
                         walking_segment(g, (1.0, 0.0), (0.01, 0.0)),       # stands near a still partner, near its goal
                         walking_segment(g, (-0.5, 0.5), (0.0, 0.05)),      # no partner, far goal behind
                         walking_segment(g, (2.0, 2.0), (0.0, 0.0))])       # nothing but its feet
     segs[0, 3:, 10, 2] -= 0.08                   # a toe dips under the floor
+    segs[1, 5:, :, 0] += 0.3                      # glides 0.3 m sideways between two frames (a partner row)
     hist = torch.stack([walking_segment(g, (0.1, -0.44), (0.0, -0.08), 2), walking_segment(g, (1.0, 0.0), (0.0, 0.0), 2),
                         walking_segment(g, (-0.5, 0.4), (0.0, 0.05), 2), walking_segment(g, (2.0, 2.0), (0.0, 0.0), 2)])
     hist_n = stats.normalize(features(hist))
@@ -104,10 +105,14 @@ def test_numpy_costs_and_gradients_match_autograd(stats, keep, body_share):
 
 def test_every_cost_is_exercised(stats):
     """The batch above takes each cost on some row: partner, passing, facing a still partner, scene, goal with
-    walking distance, resting near a goal, facing a far goal, the feet and the floor."""
+    walking distance, resting near a goal, facing a far goal, the feet, the floor and a glide past a partner."""
     costs, feat_n = batch(stats, keep=False)
     assert costs.partner.rows == [0, 1] and costs.passes.rows == [0] and costs.still == [False, True]
     assert costs.scene.rows == [0, 1, 2] and costs.field is not None and costs.walk is not None
     assert costs.far == [True, False, True]
     value, _ = costs.value_and_grad(feat_n)
     assert (value > 0.0).all()
+    from model_runtime.control import glide_cost
+    pelvis = costs.stats.denormalize(feat_n)[..., ROOT_T][..., :2]
+    glides = glide_cost(pelvis, costs.history_xy, costs.cfg.glide_accel / 100.0)
+    assert glides[1] > 0.0 and glides[3] == 0.0

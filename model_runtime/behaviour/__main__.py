@@ -7,6 +7,8 @@ import sys
 
 import numpy as np
 
+from .control_overrides import control_config_from
+
 
 def _jsonable(x):
     if isinstance(x, dict):
@@ -43,28 +45,6 @@ def _print_tables(path: str) -> int:
         return 2
     print(text or f"{path} has neither the text family nor diversity; run with --families text or --diversity")
     return 0
-
-
-def _control_config(settings: list[str]):
-    """A ControlConfig with NAME=VALUE overrides (None without any): ValueError naming a bad one."""
-    if not settings:
-        return None
-    from ..control import ControlConfig
-    from ..errors import InputError
-    fields = ControlConfig.__dataclass_fields__
-    values = {}
-    for kv in settings:
-        name, sep, value = kv.partition("=")
-        if not sep or name not in fields:
-            raise ValueError(f"--control-set {kv!r}: give NAME=VALUE with NAME one of {', '.join(fields)}")
-        try:
-            values[name] = int(value) if isinstance(fields[name].default, int) else float(value)
-        except ValueError:
-            raise ValueError(f"--control-set {kv!r}: {value!r} is not a number") from None
-    try:
-        return ControlConfig(**values)
-    except InputError as exc:
-        raise ValueError(str(exc)) from None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -111,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.diversity and args.diversity_seeds < 2:
         ap.error("--diversity-seeds must be at least 2")
     try:
-        control_config = _control_config(args.control_set)
+        control_config = control_config_from(args.control_set)
     except ValueError as exc:
         ap.error(str(exc))
     import torch

@@ -25,6 +25,8 @@ AIRBORNE_HEIGHT = 0.05          # m: the lowest sole this far above the floor co
 MIN_TRAVEL = 0.3                # m: less horizontal travel has no direction to compare with the facing
 WAVE_MIN_RAISED_FRAMES = 10     # a wrist above its shoulder for less than 1 s is not waving
 FLOOR_HALF_WINDOW = 5           # frames: a real clip's floor follows its feet over about 1 s (rolling_floor)
+GLIDE_SPEED = 4.0               # m/s: a pelvis step faster than this between two frames is a glide, not a step
+                                # (the 4 h library's clips: 99.99 % of pelvis steps under 4.35 m/s, all under 5.0)
 
 ANKLES = (JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"])
 WRISTS = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
@@ -63,6 +65,14 @@ def joint_steps(joints: np.ndarray) -> np.ndarray:
     """(T-1,) mean over joints of the displacement from frame t-1 to frame t (m)."""
     j = np.asarray(joints, np.float64)
     return np.linalg.norm(np.diff(j, axis=0), axis=-1).mean(-1)
+
+
+def peak_pelvis_speed(joints: np.ndarray) -> float:
+    """The fastest horizontal pelvis step between two frames, in m/s: a dodge or a seam made by gliding shows
+    here (walking peaks near 2 m/s, running near 4)."""
+    if len(joints) < 2:
+        return 0.0
+    return float(np.linalg.norm(np.diff(joints[:, 0, :2], axis=0), axis=-1).max() * FPS)
 
 
 def seam_ratio(joints: np.ndarray, period: int = SEAM_PERIOD, offset: int = 0) -> float:

@@ -47,7 +47,7 @@ def roll_out(model, ep: Episode, alpha: float, *, guidance: float = 5.0, **sessi
 def episode_metrics(ep: Episode, ego: np.ndarray) -> dict:
     """Every metric that applies to this episode's family."""
     out = {"toe_speeds": M.planted_toe_speed(ego),
-           "seam_steps": _seam_split(ego)}
+           "seam_steps": _seam_split(ego), "peak_pelvis_speed": M.peak_pelvis_speed(ego)}
     if ep.partner is not None:
         out["min_clearance_m"] = M.min_joint_clearance(ego, ep.partner)
     if ep.family == "approach":
@@ -81,6 +81,7 @@ def summarise(family: str, results: list[dict]) -> dict:
     s["seam_ratio"] = float((seam / max(ns, 1)) / max(other / max(no, 1), 1e-9))
     toes = np.concatenate([r["toe_speeds"] for r in results]) if results else np.zeros(0)
     s["planted_toe_cm_s"] = float(toes.mean() * 100.0) if toes.size else float("nan")
+    s["percent_glide"] = float(100.0 * np.mean([r["peak_pelvis_speed"] > M.GLIDE_SPEED for r in results]))
     if "min_clearance_m" in results[0]:
         c = np.array([r["min_clearance_m"] for r in results])
         s.update(min_clearance_mean_m=float(c.mean()), min_clearance_min_m=float(c.min()),
