@@ -78,6 +78,8 @@ class ControlConfig:
                                     # buys less sliding by slowing the body down: "a person runs" 1.21 -> 0.27
                                     # m/s on val); 0 moves the legs against the pelvis only
     floor_weight: float = 40.0
+    glide_guard: float = 0.0        # m/s, 0 = off: a steering step that makes the pelvis step faster than this
+                                    # (and 0.5 m/s faster than before the step) is taken back and halved
     glide_weight: float = 0.0       # with a partner: pelvis accelerations past glide_accel, so that a dodge is
     glide_accel: float = 10.0       # walked, not glided (m/s^2; egos dodging one another moved their pelvis 4-10
                                     # m/s between two frames; real clips' pelvis accelerations: 99.9 % under 8)
@@ -89,6 +91,7 @@ class ControlConfig:
                 raise InputError(f"control config: {name} = {value!r} must be a finite number >= 0")
 
 
+GLIDE_MARGIN = 0.5    # m/s: a step that raises the peak pelvis speed less than this is no new glide
 NORM_EPS = 1e-12      # under a square root whose hinge is zero near zero: only keeps its gradient finite
 
 
@@ -516,6 +519,8 @@ class LatentSteer:
                  step_size: float | None = None) -> None:
         self.model, self.costs, self.cfg, self.hist = model, costs, cfg, hist_n
         self.step_size = cfg.step_size if step_size is None else step_size
+        # with cfg.glide_guard: the latent before the last step, that step, and its pelvis's peak speed
+        self._before: tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None = None
 
     @staticmethod
     def decode_with_grad(model, hist_n: torch.Tensor, x0: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -528,6 +533,49 @@ class LatentSteer:
     def __call__(self, x0: torch.Tensor, forward: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
         """One step from x0; `forward`: decode_with_grad(model, hist, x0) already computed, else done here."""
         z, decoded = forward if forward is not None else self.decode_with_grad(self.model, self.hist, x0)
+        if self.cfg.glide_guard > 0.0:
+            return self._guarded(x0, z, decoded)
+        return self._step(x0, z, decoded)
+
+    def settle(self, x0: torch.Tensor, decoded: torch.Tensor | None = None) -> torch.Tensor:
+        """The last step checked as every other one is (glide_guard): x0 itself, or with the rows whose last step
+        made them glide taken back to half that step. `decoded`: x0's segment, if the caller has it."""
+        if self.cfg.glide_guard <= 0.0 or self._before is None:
+            return x0
+        if decoded is None:
+            decoded = self.model.decode(self.hist, x0)
+        start, taken, peak_before = self._before
+        peak = self._peak_speed(decoded)
+        back = (peak > self.cfg.glide_guard) & (peak > peak_before + GLIDE_MARGIN)
+        return torch.where(back.view(-1, 1, 1), start - 0.5 * taken, x0).detach() if bool(back.any()) else x0
+
+    def _peak_speed(self, decoded: torch.Tensor) -> torch.Tensor:
+        """(B,) the fastest horizontal pelvis step of each decoded segment, from the history's last frame, in m/s."""
+        pelvis = self.costs.stats.denormalize(decoded.detach())[..., ROOT_T][..., :2]
+        path = torch.cat((self.costs.before_xy.unsqueeze(1), pelvis), 1)
+        return torch.linalg.vector_norm(path[:, 1:] - path[:, :-1], dim=-1).amax(1) * FPS
+
+    def _guarded(self, x0: torch.Tensor, z: torch.Tensor, decoded: torch.Tensor) -> torch.Tensor:
+        """A step as _step makes it, except for the rows whose previous step made their pelvis glide: those go
+        back to where they were and take half that step instead. A glide is a new peak pelvis speed over
+        glide_guard that is 0.5 m/s faster than before the step (a segment that was fast already may stay so)."""
+        peak = self._peak_speed(decoded)
+        moved = self._step(x0, z, decoded)
+        if self._before is not None:
+            start, taken, peak_before = self._before
+            back = (peak > self.cfg.glide_guard) & (peak > peak_before + GLIDE_MARGIN)
+            if bool(back.any()):
+                rows = back.view(-1, 1, 1)
+                halved = 0.5 * taken
+                moved = torch.where(rows, start - halved, moved)
+                self._before = (torch.where(rows, start, x0), torch.where(rows, halved, x0 - moved),
+                                torch.where(back, peak_before, peak))
+                return moved.detach()
+        self._before = (x0, x0 - moved, peak)
+        return moved
+
+    def _step(self, x0: torch.Tensor, z: torch.Tensor, decoded: torch.Tensor) -> torch.Tensor:
+        """One bounded step down the costs' gradient, per row; rows costing (almost) nothing stay."""
         with torch.enable_grad():
             cost, d_cost = self.costs.value_and_grad(decoded)
             # a row costing (almost) nothing is left as it is; with none left, skip the backward pass too

@@ -295,6 +295,7 @@ class ReactionGroup:
             steer = self._steer(hist_n, canon, lead=0, keep=made, step_size=cc.seam_step_size, alphas=job.alpha)
             for k in range(cc.seam_steers):
                 z0 = steer(z0, forward if k == 0 else None)
+            z0 = steer.settle(z0)
         for e, (rot, trans, h), alpha in zip(self.egos, canon, job.alpha):
             e.seg = {"rot": rot, "trans": trans, "emitted": h[0], "alpha": alpha}
         return {"hist_n": hist_n, "z0": z0, "future": self.model.decode(hist_n, z0), "f": 0}

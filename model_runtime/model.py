@@ -367,7 +367,8 @@ class DiffusionJob:
                     self.z = self.model.schedule.step(self.z, self.t, x0, eps)
                     self.t -= 1
             if self._clean is not None and self._steers_left == 0:
-                self.result = self._clean
+                settle = getattr(self.steer, "settle", None)     # a LatentSteer checks its last step too
+                self.result = settle(self._clean) if settle is not None and self.final_steers else self._clean
 
 
 class NoiseDraws:

@@ -158,6 +158,46 @@ def test_seam_cost_is_zero_for_a_steady_motion_and_grows_with_a_jump(tiny_model)
     assert -g[0].sum() < 0                # the jumped first frame is pulled back toward the steady path
 
 
+def _steer_near_a_partner(m, cfg):
+    s = ReactionSession(m, text="walk", seed=0, control=False)
+    s.reset()
+    hist_world = s.history_world_features()
+    rot, trans = canonical_frame(feature_joints(hist_world[0]))
+    hist_n = m.stats.normalize(to_canonical(hist_world, rot, trans)).unsqueeze(0)
+    partner = standing_body(0.1, 0.0).expand(m.cfg.future + 4, -1, -1)
+    costs = SegmentCosts(m.stats, hist_n, ControlTargets(partner=partner, alpha_hhi=1.0), cfg)
+    z = torch.randn(1, m.cfg.latent_tokens, m.cfg.latent_dim, generator=torch.Generator().manual_seed(0))
+    return LatentSteer(m, hist_n, costs, cfg), z
+
+
+def test_glide_guard_takes_back_half_of_a_step_that_made_a_glide(tiny_model, monkeypatch):
+    """With glide_guard, a step after which the pelvis steps faster than the guard (and 0.5 m/s faster than before
+    it) is replaced by half of it, from where it started; settle() checks the last step the same way."""
+    cfg = replace(CFG, glide_guard=3.0)
+    steer, z = _steer_near_a_partner(tiny_model, cfg)
+    plain, _ = _steer_near_a_partner(tiny_model, CFG)
+    peaks = iter([1.0, 5.0, 1.2])                     # the pelvis's peak speed at each decode, m/s
+    monkeypatch.setattr(LatentSteer, "_peak_speed", lambda self, decoded: torch.tensor([next(peaks)]))
+    first = steer(z)
+    assert torch.equal(first, plain(z))              # nothing to check before the first step
+    taken = z - first
+    second = steer(first)                            # the first step glided (5 m/s): back, half of it
+    assert torch.allclose(second, z - 0.5 * taken)
+    third = steer.settle(second)                     # half the step does not glide (1.2 m/s): kept
+    assert torch.equal(third, second)
+    peaks = iter([1.0, 1.3])
+    monkeypatch.setattr(LatentSteer, "_peak_speed", lambda self, decoded: torch.tensor([next(peaks)]))
+    steer, z = _steer_near_a_partner(tiny_model, cfg)
+    moved = steer(z)
+    assert torch.equal(steer.settle(moved), moved)   # no glide: the step stands
+
+
+def test_without_the_glide_guard_settle_changes_nothing(tiny_model):
+    steer, z = _steer_near_a_partner(tiny_model, CFG)
+    moved = steer(z)
+    assert steer.settle(moved) is moved
+
+
 def test_glide_cost_is_zero_for_walking_and_turning_and_grows_with_a_glide():
     """Accelerations under the limit cost nothing; a 0.3 m jump between two frames costs its excess at both of its
     accelerations (in, then out), and its gradient pulls the jumped frames back."""
