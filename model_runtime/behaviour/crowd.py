@@ -10,8 +10,9 @@ others (val to choose, test to report), in three layouts taken in turn, each aim
 - three: three egos on a circle of radius 1.8-2.8 m, each facing its centre within 15 deg
 
 Every ego is told "a person walks forward" with its own seed; an episode lasts 6 s. Measured: the
-smallest joint-to-joint distance between any two egos over the episode, at alpha_HHI 1 (each ego reacts
-to the nearest other one, test-time control on) and at alpha 0 (they ignore each other).
+smallest joint-to-joint distance between any two egos over the episode, and the fastest pelvis step of any
+of them (a glide, metrics.GLIDE_SPEED), at alpha_HHI 1 (each ego reacts to the nearest other one, test-time
+control on) and at alpha 0 (they ignore each other).
 
     python -m model_runtime.behaviour.crowd --split val --model FILE [--episodes 48] [--json OUT]
 """
