@@ -60,6 +60,8 @@ class ControlConfig:
     look_ahead: int = 8             # partner frames past a segment's end its last pose must keep clear of
     still_speed: float = 0.3        # m/s: a partner slower than this counts as standing
     max_partner_speed: float = 2.5  # m/s: the extrapolation never moves a partner faster than this
+    ego_plans: int = 0              # 1: another ego is extrapolated from the end of its own segment now starting
+                                    # (known), not from its latest frame; off by default (README, "Egos among egos")
     scene_margin: float = 0.12      # m: joint clearance the scene cost keeps from obstacles
     scene_weight: float = 40.0
     goal_weight: float = 2.0

@@ -276,7 +276,8 @@ class Ego:
     def control_targets(self, rot: torch.Tensor, trans: torch.Tensor, lead: int,
                         field: Callable[[], DistanceField] | None, cc: ControlConfig,
                         alpha: dict[str, float] | None = None,
-                        floor: Callable[[], FloorMap] | None = None) -> ControlTargets:
+                        floor: Callable[[], FloorMap] | None = None,
+                        cue_plan: torch.Tensor | None = None) -> ControlTargets:
         """Test-time control of one job: its costs' targets in the job's canonical frame. `field` and `floor` give
         the scene's distance field and floor map (each built once per grid), None without a scene; `alpha` the
         alphas to steer with (default: the current ones)."""
@@ -284,6 +285,14 @@ class Ego:
         targets = ControlTargets(alpha_hhi=alpha["hhi"], alpha_hsi=alpha["hsi"])
         if targets.alpha_hhi > 0.0:
             window, present = self.cue_window(rot, trans, self.cfg.partner_window)
+            if cue_plan is not None and self.cue_id >= 0 and 0 < len(cue_plan) <= lead:
+                # another ego's own plan for the frames before this job's segment (world joints): known, so
+                # extrapolate from its end instead of from that ego's latest frame
+                k = len(cue_plan)
+                planned = world_points_to_canonical(cue_plan, rot, trans).unsqueeze(0)
+                window = torch.cat((window[:, k:], planned), 1)
+                present = torch.cat((present[:, k:], torch.ones(1, k, dtype=torch.bool)), 1)
+                lead = lead - k
             targets.partner, targets.partner_still = partner_future(window[0], present[0], lead + 1,
                                                                     self.cfg.future + int(cc.look_ahead), cc)
             away = self.pass_away(cc)

@@ -350,8 +350,20 @@ class ReactionGroup:
         cc = self._control_config
         field, floor = (self._distance_field, self._floor_map) if self._scene is not None else (None, None)
         alphas = alphas if alphas is not None else [None] * len(self.egos)
-        return [e.control_targets(rot, trans, lead, field, cc, a, floor)
+        plans = self._ego_plans(lead)
+        return [e.control_targets(rot, trans, lead, field, cc, a, floor,
+                                  cue_plan=plans[e.cue_id] if plans is not None and e.cue_id >= 0 else None)
                 for e, (rot, trans, _), a in zip(self.egos, canon, alphas)]
+
+    def _ego_plans(self, lead: int) -> list[torch.Tensor] | None:
+        """Each ego's world joints for the frames of the segment now starting, when a job is made for the segment
+        after it (lead = F): what the others will see of it until that job's segment starts. None otherwise."""
+        seg = self._seg
+        if (not self._control_config.ego_plans or len(self.egos) < 2 or seg is None or seg["f"] != 0
+                or lead != self.cfg.future):
+            return None
+        return [feature_joints(to_world(self.model.stats.denormalize(seg["future"][i]), e.seg["rot"], e.seg["trans"]))
+                for i, e in enumerate(self.egos)]
 
     def _steer(self, hist_n: torch.Tensor, canon: list[tuple], lead: int, keep: torch.Tensor | None = None,
                step_size: float | None = None, alphas: list[dict] | None = None) -> LatentSteer:

@@ -165,3 +165,35 @@ def test_a_non_finite_pose_names_the_ego_and_leaves_the_group_as_it_was():
     assert g.frame_index == 9
     for want in expected[9:]:
         assert np.array_equal(frames_of(g.step()), frames_of(want))
+
+
+def test_ego_plans_extrapolate_another_ego_from_the_end_of_its_segment(tiny_model):
+    """With ControlConfig.ego_plans, the partner cost sees another ego moved on from the end of the segment it is
+    about to play (its plan, known to the group), not from its latest frame."""
+    from model_runtime.ego import Ego
+    from model_runtime.fixtures import approaching_partner
+    cc = ControlConfig(ego_plans=1)
+    ego = Ego(tiny_model, EgoSettings(seed=0, alpha={"hhi": 1.0, "hsi": 0.0}))
+    still = np.asarray(approaching_partner(12, start=2.0, stop=2.0, speed=1.0)[-1], np.float32)   # standing 2 m away
+    ego.cue.extend([still.copy() for _ in range(tiny_model.cfg.partner_window)])
+    ego.cue_id = 1
+    lead = tiny_model.cfg.future
+    plan = torch.from_numpy(np.stack([still + np.float32([0.0, 0.1 * (k + 1), 0.0]) for k in range(lead)]))
+    rot, trans = torch.eye(3), torch.zeros(3)
+    seen = ego.control_targets(rot, trans, lead, None, cc).partner
+    planned = ego.control_targets(rot, trans, lead, None, cc, cue_plan=plan).partner
+    assert torch.allclose(seen[0], torch.from_numpy(still), atol=1e-5)          # standing: it stays where it is
+    # from the plan's end, at the plan's own speed (0.1 m a frame along +Y), one frame on
+    assert torch.allclose(planned[0, :, 1], plan[-1, :, 1] + 0.1, atol=1e-4)
+    assert torch.allclose(planned[0, :, 0], plan[-1, :, 0], atol=1e-4)
+
+
+def test_ego_plans_off_by_default_leave_two_egos_as_they_were(tiny_model):
+    def run(cc):
+        g = ReactionGroup(tiny_model, [EgoSettings(seed=0, alpha={"hhi": 1.0, "hsi": 0.0}),
+                                       EgoSettings(seed=1, alpha={"hhi": 1.0, "hsi": 0.0})], control_config=cc)
+        g.reset(root_positions=[(0.0, 0.35, 0.0), (0.0, -0.35, 0.0)], yaws=[0.0, math.pi])   # within the margin
+        return np.stack([np.stack([f.joints for f in g.step()]) for _ in range(20)])
+    default, off, on = run(None), run(ControlConfig(ego_plans=0)), run(ControlConfig(ego_plans=1))
+    assert np.array_equal(default, off)
+    assert not np.array_equal(default, on)        # the plans reach the control from the second segment's job on
