@@ -412,7 +412,8 @@ class SegmentCosts:
             return c
         n = lambda t: t.detach().double().numpy()   # noqa: E731
         c = {"mean": n(self.stats.mean), "std": n(self.stats.std), "before": n(self.before_joints),
-             "before_xy": n(self.before_xy), "history_xy": n(self.history_xy), "earlier": None if self.earlier_joints is None else n(self.earlier_joints),
+             "before_xy": n(self.before_xy), "history_xy": n(self.history_xy),
+             "earlier": None if self.earlier_joints is None else n(self.earlier_joints),
              "keep": None if self.keep is None else n(self.keep)}
         if self.partner.any:
             c["future"] = n(self.partner_future)
@@ -539,17 +540,18 @@ class LatentSteer:
             return self._guarded(x0, z, decoded)
         return self._step(x0, z, decoded)
 
-    def settle(self, x0: torch.Tensor, decoded: torch.Tensor | None = None) -> torch.Tensor:
+    def settle(self, x0: torch.Tensor) -> torch.Tensor:
         """The last step checked as every other one is (glide_guard): x0 itself, or with the rows whose last step
-        made them glide taken back to half that step. `decoded`: x0's segment, if the caller has it."""
+        made them glide taken back to half that step (one more decoder pass; none with the guard off)."""
         if self.cfg.glide_guard <= 0.0 or self._before is None:
             return x0
-        if decoded is None:
-            decoded = self.model.decode(self.hist, x0)
-        start, taken, peak_before = self._before
-        peak = self._peak_speed(decoded)
-        back = (peak > self.cfg.glide_guard) & (peak > peak_before + GLIDE_MARGIN)
+        back = self._glided(self._peak_speed(self.model.decode(self.hist, x0)))
+        start, taken, _ = self._before
         return torch.where(back.view(-1, 1, 1), start - 0.5 * taken, x0).detach() if bool(back.any()) else x0
+
+    def _glided(self, peak: torch.Tensor) -> torch.Tensor:
+        """(B,) bool: the rows whose last step made a glide, given their pelvis's peak speed after it."""
+        return (peak > self.cfg.glide_guard) & (peak > self._before[2] + GLIDE_MARGIN)
 
     def _peak_speed(self, decoded: torch.Tensor) -> torch.Tensor:
         """(B,) the fastest horizontal pelvis step of each decoded segment, from the history's last frame, in m/s."""
@@ -565,7 +567,7 @@ class LatentSteer:
         moved = self._step(x0, z, decoded)
         if self._before is not None:
             start, taken, peak_before = self._before
-            back = (peak > self.cfg.glide_guard) & (peak > peak_before + GLIDE_MARGIN)
+            back = self._glided(peak)
             if bool(back.any()):
                 rows = back.view(-1, 1, 1)
                 halved = 0.5 * taken

@@ -126,17 +126,22 @@ def test_partner_future_extrapolates_a_walk_and_spots_a_standing_partner():
     assert none is None
 
 
-def test_steering_lowers_the_segment_cost(tiny_model):
-    m = tiny_model
+def _steer_near_a_partner(m, cfg):
     s = ReactionSession(m, text="walk", seed=0, control=False)
     s.reset()
     hist_world = s.history_world_features()
     rot, trans = canonical_frame(feature_joints(hist_world[0]))
     hist_n = m.stats.normalize(to_canonical(hist_world, rot, trans)).unsqueeze(0)
     partner = standing_body(0.1, 0.0).expand(m.cfg.future + 4, -1, -1)
-    costs = SegmentCosts(m.stats, hist_n, ControlTargets(partner=partner, alpha_hhi=1.0), CFG)
-    steer = LatentSteer(m, hist_n, costs, CFG)
+    costs = SegmentCosts(m.stats, hist_n, ControlTargets(partner=partner, alpha_hhi=1.0), cfg)
     z = torch.randn(1, m.cfg.latent_tokens, m.cfg.latent_dim, generator=torch.Generator().manual_seed(0))
+    return LatentSteer(m, hist_n, costs, cfg), z
+
+
+def test_steering_lowers_the_segment_cost(tiny_model):
+    m = tiny_model
+    steer, z = _steer_near_a_partner(m, CFG)
+    costs, hist_n = steer.costs, steer.hist
     with torch.no_grad():
         before = float(costs(m.decode(hist_n, z)))
         after = float(costs(m.decode(hist_n, steer(z))))
@@ -156,18 +161,6 @@ def test_seam_cost_is_zero_for_a_steady_motion_and_grows_with_a_jump(tiny_model)
     assert float(costs(m.stats.normalize(steady))) < 1e-6 < float(costs(m.stats.normalize(jumped)))
     g = grad_of(lambda j: seam_cost(j, torch.full((22, 3), 0.1), torch.zeros(22, 3)), feature_joints(jumped[0]))
     assert -g[0].sum() < 0                # the jumped first frame is pulled back toward the steady path
-
-
-def _steer_near_a_partner(m, cfg):
-    s = ReactionSession(m, text="walk", seed=0, control=False)
-    s.reset()
-    hist_world = s.history_world_features()
-    rot, trans = canonical_frame(feature_joints(hist_world[0]))
-    hist_n = m.stats.normalize(to_canonical(hist_world, rot, trans)).unsqueeze(0)
-    partner = standing_body(0.1, 0.0).expand(m.cfg.future + 4, -1, -1)
-    costs = SegmentCosts(m.stats, hist_n, ControlTargets(partner=partner, alpha_hhi=1.0), cfg)
-    z = torch.randn(1, m.cfg.latent_tokens, m.cfg.latent_dim, generator=torch.Generator().manual_seed(0))
-    return LatentSteer(m, hist_n, costs, cfg), z
 
 
 def test_glide_guard_takes_back_half_of_a_step_that_made_a_glide(tiny_model, monkeypatch):

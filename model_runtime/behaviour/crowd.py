@@ -24,12 +24,13 @@ import math
 import sys
 import time
 from dataclasses import dataclass, field
+from itertools import combinations
 from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
 from .control_overrides import control_config_from
-from .metrics import GLIDE_SPEED, finite_mean, peak_pelvis_speed
+from .metrics import GLIDE_SPEED, finite_mean, min_joint_clearance, peak_pelvis_speed
 from .scenarios import EPISODES_PER_FAMILY, SPLIT_SEEDS, WALK_TEXT
 
 LAYOUTS = ("head_on", "crossing", "three")
@@ -106,12 +107,7 @@ def draw_crowd_episodes(split: str, n: int = EPISODES_PER_FAMILY) -> list[CrowdE
 
 def closest_approach_m(tracks: Sequence[np.ndarray]) -> float:
     """Smallest joint-to-joint distance between any two of the (frames, J, 3) tracks at any frame."""
-    best = math.inf
-    for i in range(len(tracks)):
-        for j in range(i + 1, len(tracks)):
-            d = np.linalg.norm(tracks[i][:, :, None] - tracks[j][:, None], axis=-1)   # (frames, J, J)
-            best = min(best, float(d.min()))
-    return best
+    return min(min_joint_clearance(a, b) for a, b in combinations(tracks, 2))
 
 
 def roll_out_crowd(model, ep: CrowdEpisode, alpha: float, **group_options) -> list[np.ndarray]:
