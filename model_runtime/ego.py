@@ -233,9 +233,14 @@ class Ego:
                 pts[0, i] = world_points_to_canonical(torch.from_numpy(p), rot, trans)
         return pts, present
 
-    def _paths(self) -> tuple[np.ndarray, np.ndarray] | None:
+    def _paths(self, plans: tuple[torch.Tensor, torch.Tensor] | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """The latest pelvis positions (xy) of the ego and of the character it reacts to, oldest first; None
-        while that one is not seen in each of them."""
+        while that one is not seen in each of them. With `plans` (both egos' world joints over the segment now
+        starting), the last positions of those instead: where and how the two will walk when this job's
+        segment starts."""
+        if plans is not None:
+            own, other = (p[-PASS_FRAMES:, 0, :2].double().numpy() for p in plans)
+            return own, other
         n = min(PASS_FRAMES, len(self.cue), len(self.trail))
         other = self.cue[-n:]
         if n < 2 or any(p is None for p in other):
@@ -243,12 +248,12 @@ class Ego:
         own = np.stack([j[0, :2] for j in list(self.trail)[-n:]]).astype(np.float64)
         return own, np.stack([j[0, :2] for j in other]).astype(np.float64)
 
-    def pass_away(self, cc: ControlConfig) -> np.ndarray | None:
+    def pass_away(self, cc: ControlConfig, plans: tuple[torch.Tensor, torch.Tensor] | None = None) -> np.ndarray | None:
         """Which way to keep clear of the character it reacts to, if passing it (world xy); remembered per
         character so the side does not flip while passing. Only another ego is passed this way: two egos
         follow the same convention, so their choices fit together; the partner follows its own animation
         (the partner cost alone keeps the ego clear of it, as for a single ego)."""
-        paths = self._paths() if self.cue_id >= 0 else None
+        paths = self._paths(plans) if self.cue_id >= 0 else None
         before = self.passing[1] if self.passing is not None and self.passing[0] == self.cue_id else None
         away = None if paths is None else passing_away(*paths, before, cc)
         self.passing = None if away is None else (self.cue_id, away)
@@ -277,7 +282,8 @@ class Ego:
                         field: Callable[[], DistanceField] | None, cc: ControlConfig,
                         alpha: dict[str, float] | None = None,
                         floor: Callable[[], FloorMap] | None = None,
-                        cue_plan: torch.Tensor | None = None) -> ControlTargets:
+                        cue_plan: torch.Tensor | None = None,
+                        own_plan: torch.Tensor | None = None) -> ControlTargets:
         """Test-time control of one job: its costs' targets in the job's canonical frame. `field` and `floor` give
         the scene's distance field and floor map (each built once per grid), None without a scene; `alpha` the
         alphas to steer with (default: the current ones)."""
@@ -295,7 +301,8 @@ class Ego:
                 lead = lead - k
             targets.partner, targets.partner_still = partner_future(window[0], present[0], lead + 1,
                                                                     self.cfg.future + int(cc.look_ahead), cc)
-            away = self.pass_away(cc)
+            plans = (own_plan, cue_plan) if own_plan is not None and cue_plan is not None else None
+            away = self.pass_away(cc, plans)
             if away is not None and targets.partner is not None:
                 targets.pass_away = (rot[:2, :2].T @ torch.as_tensor(away, dtype=torch.float32))
         if targets.alpha_hsi > 0.0:

@@ -303,39 +303,41 @@ class ReactionGroup:
     def _fix_inputs(self, hist_worlds: list[torch.Tensor], lead: int) -> tuple:
         """Everything `_new_job` reads, as it is now, for `_build_pending` to build that very job at a later
         step: each ego as a shallow copy (its settings, cue, goal, passing state; its trail copied, as that one
-        grows in place), the scene and the control settings. The noise is drawn at the build, from the egos'
-        own generators, which nothing else draws from meanwhile."""
+        grows in place), the scene, the control settings and the egos' plans (known only at a segment's start).
+        The noise is drawn at the build, from the egos' own generators, which nothing else draws from meanwhile."""
         views = []
         for e in self.egos:
             v = copy.copy(e)
             v.trail = deque(e.trail, maxlen=e.trail.maxlen)
             views.append(v)
-        return hist_worlds, lead, views, self._scene, self._control, self._control_config
+        return hist_worlds, lead, views, self._scene, self._control, self._control_config, self._ego_plans(lead)
 
     def _build_pending(self) -> None:
         """Build and send the job whose inputs `_fix_inputs` fixed: the very job it would have been then."""
-        hist_worlds, lead, views, scene, control, cc = self._pending
+        hist_worlds, lead, views, scene, control, cc, plans = self._pending
         views = [copy.copy(v) for v in views]      # a failed step restores the pending job untouched
         live = self.egos, self._scene, self._control, self._control_config
         self.egos, self._scene, self._control, self._control_config = views, scene, control, cc
         try:
-            job = self._new_job(hist_worlds, lead, ahead=True)
+            job = self._new_job(hist_worlds, lead, ahead=True, plans=plans)
         finally:
             self.egos, self._scene, self._control, self._control_config = live
         for e, v in zip(self.egos, views):      # what building it changed on the egos
             e.passing, e._nav = v.passing, v._nav
         self._job, self._pending = job, None
 
-    def _new_job(self, hist_worlds: list[torch.Tensor], lead: int, ahead: bool = False) -> DiffusionJob | RemoteJob:
+    def _new_job(self, hist_worlds: list[torch.Tensor], lead: int, ahead: bool = False,
+                 plans: list[torch.Tensor] | None = None) -> DiffusionJob | RemoteJob:
         """A diffusion job for the segments that start after `hist_worlds` (real or predicted, one per ego),
         whose first frame plays `lead` frames after the latest partner frame. A job for a segment `ahead`
-        of the one playing runs in the helper process when pipelining, else here, spread over frames."""
+        of the one playing runs in the helper process when pipelining, else here, spread over frames.
+        `plans`: the egos' plans fixed earlier (`_fix_inputs`), else those of now."""
         canon = [e.canonical_history(h) for e, h in zip(self.egos, hist_worlds)]
         egos = self.egos
         spec = JobSpec(hist_n=torch.cat([c[2] for c in canon]), text_emb=torch.cat([e.text_emb for e in egos]),
                        **self._context_inputs(canon), alpha=[e.alpha for e in egos],
                        guidance=[e.guidance for e in egos],
-                       targets=self._targets(canon, lead) if self._control else None,
+                       targets=self._targets(canon, lead, plans=plans) if self._control else None,
                        control=self._control_config if self._control else None,
                        noise=job_draws(self.model, [e.gen for e in egos], len(egos)))
         if ahead and self._pipeline and self._worker is not None and self._worker.usable:
@@ -345,15 +347,18 @@ class ReactionGroup:
                 pass          # gone meanwhile: this job, and the next ones, run here
         return build_job(self.model, spec)
 
-    def _targets(self, canon: list[tuple], lead: int, alphas: list[dict] | None = None) -> list:
-        """Each ego's control targets in its canonical frame, with `alphas` (default: the egos' current ones)."""
+    def _targets(self, canon: list[tuple], lead: int, alphas: list[dict] | None = None,
+                 plans: list[torch.Tensor] | None = None) -> list:
+        """Each ego's control targets in its canonical frame, with `alphas` (default: the egos' current ones) and
+        `plans` (default: the egos' plans as of now, `_ego_plans`)."""
         cc = self._control_config
         field, floor = (self._distance_field, self._floor_map) if self._scene is not None else (None, None)
         alphas = alphas if alphas is not None else [None] * len(self.egos)
-        plans = self._ego_plans(lead)
+        plans = plans if plans is not None else self._ego_plans(lead)
         return [e.control_targets(rot, trans, lead, field, cc, a, floor,
-                                  cue_plan=plans[e.cue_id] if plans is not None and e.cue_id >= 0 else None)
-                for e, (rot, trans, _), a in zip(self.egos, canon, alphas)]
+                                  cue_plan=plans[e.cue_id] if plans is not None and e.cue_id >= 0 else None,
+                                  own_plan=plans[i] if plans is not None else None)
+                for i, (e, (rot, trans, _), a) in enumerate(zip(self.egos, canon, alphas))]
 
     def _ego_plans(self, lead: int) -> list[torch.Tensor] | None:
         """Each ego's world joints for the frames of the segment now starting, when a job is made for the segment

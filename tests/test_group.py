@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from model_runtime import EgoSettings, InputError, ModelOutputError, ReactionGroup, ReactionSession, load_model
+from model_runtime import (EgoSettings, InputError, ModelOutputError, ReactionGroup, ReactionSession, load_model,
+                           rest_joints_np)
 from model_runtime.checkpoint import DEFAULT_WEIGHTS
 from model_runtime.control import ControlConfig, passing_away
 from model_runtime.fixtures import BOX_GOAL, approaching_partner, box_scene
@@ -188,12 +189,36 @@ def test_ego_plans_extrapolate_another_ego_from_the_end_of_its_segment(tiny_mode
     assert torch.allclose(planned[0, :, 0], plan[-1, :, 0], atol=1e-4)
 
 
-def test_ego_plans_off_by_default_leave_two_egos_as_they_were(tiny_model):
+def test_two_egos_about_to_walk_at_each_other_pass_from_their_plans(tiny_model):
+    """Standing still so far, two egos whose plans walk them at each other already pick their passing sides
+    (opposite ways, so they move apart), a segment before their own latest frames would tell."""
+    from model_runtime.ego import Ego
+    cc = ControlConfig()
+    rest = np.asarray(rest_joints_np(), np.float32)
+    egos = [Ego(tiny_model, EgoSettings(seed=k, alpha={"hhi": 1.0, "hsi": 0.0})) for k in range(2)]
+    starts, steps = (np.float32([0.0, 2.0, 0.0]), np.float32([0.0, -2.0, 0.0])), (-0.1, 0.1)
+    for k, e in enumerate(egos):
+        still = rest - rest[0] + starts[k]
+        e.trail.extend([still.copy() for _ in range(4)])
+        e.cue.extend([(rest - rest[0] + starts[1 - k]).copy() for _ in range(tiny_model.cfg.partner_window)])
+        e.cue_id = 1 - k
+    lead = tiny_model.cfg.future
+    plans = [torch.from_numpy(np.stack([rest - rest[0] + starts[k] + np.float32([0.0, steps[k] * (f + 1), 0.0])
+                                        for f in range(lead)])) for k in range(2)]
+    rot, trans = torch.eye(3), torch.zeros(3)
+    assert egos[0].control_targets(rot, trans, lead, None, cc).pass_away is None      # standing: no pass yet
+    away = [e.control_targets(rot, trans, lead, None, cc, cue_plan=plans[1 - k], own_plan=plans[k]).pass_away
+            for k, e in enumerate(egos)]
+    assert away[0] is not None and away[1] is not None
+    assert torch.allclose(away[0], -away[1], atol=1e-5) and abs(float(away[0][1])) < 0.2    # opposite, across
+
+
+def test_ego_plans_on_by_default(tiny_model):
     def run(cc):
         g = ReactionGroup(tiny_model, [EgoSettings(seed=0, alpha={"hhi": 1.0, "hsi": 0.0}),
                                        EgoSettings(seed=1, alpha={"hhi": 1.0, "hsi": 0.0})], control_config=cc)
         g.reset(root_positions=[(0.0, 0.35, 0.0), (0.0, -0.35, 0.0)], yaws=[0.0, math.pi])   # within the margin
         return np.stack([np.stack([f.joints for f in g.step()]) for _ in range(20)])
     default, off, on = run(None), run(ControlConfig(ego_plans=0)), run(ControlConfig(ego_plans=1))
-    assert np.array_equal(default, off)
-    assert not np.array_equal(default, on)        # the plans reach the control from the second segment's job on
+    assert np.array_equal(default, on)
+    assert not np.array_equal(default, off)       # the plans reach the control from the second segment's job on
