@@ -107,6 +107,12 @@ class ReactionGroup:
         worker.ready.wait(timeout)
         return worker.usable
 
+    def wait_for_helper(self, timeout: float = 60.0) -> bool:
+        """Wait until no job this process sent to the helper is still running there, so that no reply comes in
+        after this returns (an application that runs other code next, as Blender does after an operator, wants
+        nothing arriving meanwhile). True when none is (also without pipelining), False after `timeout` s."""
+        return True if self._worker is None else self._worker.wait_idle(timeout)
+
     # ------------------------------------------------------------------ reset
     def reset(self, root_positions: Sequence | None = None, yaws: Sequence[float] | None = None,
               frames: Sequence[EgoFrame | None] | None = None) -> None:

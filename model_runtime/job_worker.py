@@ -44,6 +44,8 @@ from .navigation import FloorMap, NavigationField
 
 SHARED_TYPES = (DistanceField, FloorMap, NavigationField)   # sent once, then referred to by token
 _HEADER = struct.Struct("<Q")
+_REPLY_ID = struct.Struct("<q")   # a reply's job id before its pickle (READY_ID: the helper has started)
+READY_ID = -1
 _PACKAGE = __name__.rpartition(".")[0]          # this package as the caller imported it
 _PACKAGE_DIR = str(Path(__file__).resolve().parent)
 CHILD_PACKAGE = "model_runtime"                   # the name the helper imports this package under
@@ -136,7 +138,7 @@ def serve(inp: BinaryIO, out: BinaryIO, parent: str) -> None:
     threading.Thread(target=reader, daemon=True).start()
     models: dict = {}
     objects: dict = {}
-    if not _reply(out, ("ready",)):
+    if not _reply(out, READY_ID, ("ready",)):
         return
     while True:
         data = inbox.get()
@@ -164,14 +166,15 @@ def serve(inp: BinaryIO, out: BinaryIO, parent: str) -> None:
                 reply = ("result", job_id, latent)
             except Exception as exc:   # reported to the caller, which runs the job itself
                 reply = ("error", job_id, f"{type(exc).__name__}: {exc}")
-            if not _reply(out, reply):
+            if not _reply(out, job_id, reply):
                 return
 
 
-def _reply(out: BinaryIO, msg: tuple) -> bool:
-    """Send a message to the caller; False when the caller is gone (it exited: so does the helper, quietly)."""
+def _reply(out: BinaryIO, job_id: int, msg: tuple) -> bool:
+    """Send a message to the caller, its job id first (the caller's reader files it without unpickling it); False
+    when the caller is gone (it exited: so does the helper, quietly)."""
     try:
-        _write(out, pickle.dumps(msg))
+        _write(out, _REPLY_ID.pack(job_id) + pickle.dumps(msg))
         return True
     except (BrokenPipeError, OSError, ValueError):
         return False
@@ -209,8 +212,9 @@ class JobWorker:
     def __init__(self) -> None:
         self.ready = threading.Event()
         self.gone = threading.Event()
-        self._results: dict[int, tuple[tuple, float]] = {}   # job id -> (its reply, when it came: monotonic)
+        self._results: dict[int, tuple[bytes, float]] = {}   # job id -> (its pickled reply, when it came: monotonic)
         self._dropped: set[int] = set()          # discarded before their reply came: it is dropped then
+        self._in_flight: set[int] = set()        # submitted, reply not back yet
         self._done = threading.Condition()
         self._outbox: queue.Queue = queue.Queue()
         self._ids = itertools.count()
@@ -252,6 +256,10 @@ class JobWorker:
             pass
 
     def _read_loop(self) -> None:
+        # As little Python as possible runs here: inside Blender this thread may run while the main thread is in
+        # Blender's own code (an undo step, say), and unpickling a reply's tensors there could start a garbage
+        # collection that frees Blender's Python objects under it. Replies are filed as bytes and unpickled by
+        # whoever takes them (`result`).
         stdout = self._proc.stdout
         while True:
             try:
@@ -261,16 +269,17 @@ class JobWorker:
             if data is None:
                 self._fail("it exited")
                 return
-            msg = pickle.loads(data)     # from our own child process
-            if msg[0] == "ready":
+            job_id = _REPLY_ID.unpack_from(data)[0]
+            if job_id == READY_ID:
                 self.ready.set()
-            else:
-                with self._done:
-                    if msg[1] in self._dropped:      # nobody wants it any more
-                        self._dropped.discard(msg[1])
-                        continue
-                    self._results[msg[1]] = (msg, time.monotonic())
-                    self._done.notify_all()
+                continue
+            with self._done:
+                self._in_flight.discard(job_id)
+                if job_id in self._dropped:      # nobody wants it any more
+                    self._dropped.discard(job_id)
+                else:
+                    self._results[job_id] = (data, time.monotonic())
+                self._done.notify_all()
 
     def _fail(self, why: str) -> None:
         if not self.gone.is_set():
@@ -327,8 +336,22 @@ class JobWorker:
             raise WorkerError(self.problem or "the helper process is still starting")
         key = self._send_model(model)
         job_id = next(self._ids)
+        with self._done:
+            self._in_flight.add(job_id)
         self._send(("job", job_id, key, spec))
         return job_id
+
+    def wait_idle(self, timeout: float = 60.0) -> bool:
+        """Wait until no job sent to the helper is still running there (its reply, wanted or not, is back), so
+        that nothing arrives later: True when so (or when the helper is gone), False after `timeout` seconds."""
+        deadline = time.monotonic() + timeout
+        with self._done:
+            while self._in_flight and not self.gone.is_set():
+                left = deadline - time.monotonic()
+                if left <= 0.0:
+                    return False
+                self._done.wait(left)
+        return True
 
     def has_result(self, job_id: int) -> bool:
         """Whether a submitted job's result (or error) has come back."""
@@ -347,7 +370,7 @@ class JobWorker:
             while job_id not in self._results and not self.gone.is_set():
                 self._done.wait()
             reply = self._results.pop(job_id, None)
-        msg = None if reply is None else reply[0]
+        msg = None if reply is None else pickle.loads(memoryview(reply[0])[_REPLY_ID.size:])   # our own child's
         if msg is None:
             raise WorkerError(self.problem or "the helper process is gone")
         if msg[0] == "error":

@@ -118,6 +118,7 @@ class BakeJob:
         if self._closed:
             return
         self._closed = True
+        self.driver.group.wait_for_helper()
         self.scene.frame_set(self._saved_frame[0], subframe=self._saved_frame[1])
         self._restore_poses()
 
@@ -145,6 +146,9 @@ class BakeJob:
         except BaseException:
             self.cancel()
             raise
+        # the job sent ahead for the segment after the range may still be running in the helper: its reply must
+        # not come in while Blender runs its own code after the operator (an undo step)
+        driver.group.wait_for_helper()
         self.scene.frame_set(self._saved_frame[0], subframe=self._saved_frame[1])
         # the seed in each action's name is its ego's: the first ego's for the ego and the target
         seeds = [self.scene.remogen.seed] * (len(self.posed) - len(driver.others)) + [e.source.seed for e in driver.others]

@@ -168,7 +168,7 @@ def test_glide_guard_takes_back_half_of_a_step_that_made_a_glide(tiny_model, mon
     it) is replaced by half of it, from where it started; settle() checks the last step the same way."""
     cfg = replace(CFG, glide_guard=3.0)
     steer, z = _steer_near_a_partner(tiny_model, cfg)
-    plain, _ = _steer_near_a_partner(tiny_model, CFG)
+    plain, _ = _steer_near_a_partner(tiny_model, replace(CFG, glide_guard=0.0))
     peaks = iter([1.0, 5.0, 1.2])                     # the pelvis's peak speed at each decode, m/s
     monkeypatch.setattr(LatentSteer, "_peak_speed", lambda self, decoded: torch.tensor([next(peaks)]))
     first = steer(z)
@@ -186,7 +186,7 @@ def test_glide_guard_takes_back_half_of_a_step_that_made_a_glide(tiny_model, mon
 
 
 def test_without_the_glide_guard_settle_changes_nothing(tiny_model):
-    steer, z = _steer_near_a_partner(tiny_model, CFG)
+    steer, z = _steer_near_a_partner(tiny_model, replace(CFG, glide_guard=0.0))
     moved = steer(z)
     assert steer.settle(moved) is moved
 
