@@ -239,8 +239,8 @@ class Ego:
         starting), the last positions of those instead: where and how the two will walk when this job's
         segment starts."""
         if plans is not None:
-            own, other = (p[-PASS_FRAMES:, 0, :2].double().numpy() for p in plans)
-            return own, other
+            own, other = plans
+            return own[-PASS_FRAMES:, 0, :2].double().numpy(), other[-PASS_FRAMES:, 0, :2].double().numpy()
         n = min(PASS_FRAMES, len(self.cue), len(self.trail))
         other = self.cue[-n:]
         if n < 2 or any(p is None for p in other):

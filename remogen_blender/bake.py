@@ -26,6 +26,7 @@ from ._runtime import UserError, api
 from .ego_state import PoseSnapshot
 from .frame import FrameDriver, scene_fps
 
+HELPER_WAIT_S = 5.0     # s: a job takes about 0.05 s; a helper that hangs must not hold a cancel for long
 MAX_FRAMES = 100_000         # scene frames keyed in one bake
 MAX_MODEL_SECONDS = 3600.0   # model time generated in one bake (36,000 model frames at 10 fps)
 
@@ -118,7 +119,7 @@ class BakeJob:
         if self._closed:
             return
         self._closed = True
-        self.driver.group.wait_for_helper()
+        self.driver.group.wait_for_helper(HELPER_WAIT_S)
         self.scene.frame_set(self._saved_frame[0], subframe=self._saved_frame[1])
         self._restore_poses()
 
@@ -148,7 +149,7 @@ class BakeJob:
             raise
         # the job sent ahead for the segment after the range may still be running in the helper: its reply must
         # not come in while Blender runs its own code after the operator (an undo step)
-        driver.group.wait_for_helper()
+        driver.group.wait_for_helper(HELPER_WAIT_S)
         self.scene.frame_set(self._saved_frame[0], subframe=self._saved_frame[1])
         # the seed in each action's name is its ego's: the first ego's for the ego and the target
         seeds = [self.scene.remogen.seed] * (len(self.posed) - len(driver.others)) + [e.source.seed for e in driver.others]
