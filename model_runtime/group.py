@@ -368,10 +368,11 @@ class ReactionGroup:
 
     def _ego_plans(self, lead: int) -> list[torch.Tensor] | None:
         """Each ego's world joints for the frames of the segment now starting, when a job is made for the segment
-        after it (lead = F): what the others will see of it until that job's segment starts. None otherwise."""
+        after it (lead = F): what the others will see of it until that job's segment starts. None otherwise (and
+        without control, the only reader)."""
         seg = self._seg
-        if (not self._control_config.ego_plans or len(self.egos) < 2 or seg is None or seg["f"] != 0
-                or lead != self.cfg.future):
+        if (not self._control or not self._control_config.ego_plans or len(self.egos) < 2 or seg is None
+                or seg["f"] != 0 or lead != self.cfg.future):
             return None
         return [feature_joints(to_world(self.model.stats.denormalize(seg["future"][i]), e.seg["rot"], e.seg["trans"]))
                 for i, e in enumerate(self.egos)]

@@ -344,14 +344,8 @@ class JobWorker:
     def wait_idle(self, timeout: float = 60.0) -> bool:
         """Wait until no job sent to the helper is still running there (its reply, wanted or not, is back), so
         that nothing arrives later: True when so (or when the helper is gone), False after `timeout` seconds."""
-        deadline = time.monotonic() + timeout
         with self._done:
-            while self._in_flight and not self.gone.is_set():
-                left = deadline - time.monotonic()
-                if left <= 0.0:
-                    return False
-                self._done.wait(left)
-        return True
+            return self._done.wait_for(lambda: not self._in_flight or self.gone.is_set(), timeout)
 
     def has_result(self, job_id: int) -> bool:
         """Whether a submitted job's result (or error) has come back."""

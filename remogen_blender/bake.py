@@ -147,8 +147,8 @@ class BakeJob:
         except BaseException:
             self.cancel()
             raise
-        # the job sent ahead for the segment after the range may still be running in the helper: its reply must
-        # not come in while Blender runs its own code after the operator (an undo step)
+        # the job sent ahead for the segment after the range may still be running in the helper: let nothing of
+        # the bake still be under way when the operator returns and Blender runs its own code (an undo step)
         driver.group.wait_for_helper(HELPER_WAIT_S)
         self.scene.frame_set(self._saved_frame[0], subframe=self._saved_frame[1])
         # the seed in each action's name is its ego's: the first ego's for the ego and the target

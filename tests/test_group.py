@@ -172,7 +172,6 @@ def test_ego_plans_extrapolate_another_ego_from_the_end_of_its_segment(tiny_mode
     """With ControlConfig.ego_plans, the partner cost sees another ego moved on from the end of the segment it is
     about to play (its plan, known to the group), not from its latest frame."""
     from model_runtime.ego import Ego
-    from model_runtime.fixtures import approaching_partner
     cc = ControlConfig(ego_plans=1)
     ego = Ego(tiny_model, EgoSettings(seed=0, alpha={"hhi": 1.0, "hsi": 0.0}))
     still = np.asarray(approaching_partner(12, start=2.0, stop=2.0, speed=1.0)[-1], np.float32)   # standing 2 m away
@@ -195,16 +194,19 @@ def test_two_egos_about_to_walk_at_each_other_pass_from_their_plans(tiny_model):
     from model_runtime.ego import Ego
     cc = ControlConfig()
     rest = np.asarray(rest_joints_np(), np.float32)
+
+    def body_at(y: float) -> np.ndarray:          # a standing body with its pelvis at (0, y, 0)
+        return rest - rest[0] + np.float32([0.0, y, 0.0])
+
     egos = [Ego(tiny_model, EgoSettings(seed=k, alpha={"hhi": 1.0, "hsi": 0.0})) for k in range(2)]
-    starts, steps = (np.float32([0.0, 2.0, 0.0]), np.float32([0.0, -2.0, 0.0])), (-0.1, 0.1)
+    starts, steps = (2.0, -2.0), (-0.1, 0.1)
     for k, e in enumerate(egos):
-        still = rest - rest[0] + starts[k]
-        e.trail.extend([still.copy() for _ in range(4)])
-        e.cue.extend([(rest - rest[0] + starts[1 - k]).copy() for _ in range(tiny_model.cfg.partner_window)])
+        e.trail.extend([body_at(starts[k]) for _ in range(4)])
+        e.cue.extend([body_at(starts[1 - k]) for _ in range(tiny_model.cfg.partner_window)])
         e.cue_id = 1 - k
     lead = tiny_model.cfg.future
-    plans = [torch.from_numpy(np.stack([rest - rest[0] + starts[k] + np.float32([0.0, steps[k] * (f + 1), 0.0])
-                                        for f in range(lead)])) for k in range(2)]
+    plans = [torch.from_numpy(np.stack([body_at(starts[k] + steps[k] * (f + 1)) for f in range(lead)]))
+             for k in range(2)]
     rot, trans = torch.eye(3), torch.zeros(3)
     assert egos[0].control_targets(rot, trans, lead, None, cc).pass_away is None      # standing: no pass yet
     away = [e.control_targets(rot, trans, lead, None, cc, cue_plan=plans[1 - k], own_plan=plans[k]).pass_away
