@@ -26,7 +26,6 @@ from ._runtime import UserError, api
 from .ego_state import PoseSnapshot
 from .frame import FrameDriver, scene_fps
 
-HELPER_WAIT_S = 5.0     # s: a job takes about 0.05 s; a helper that hangs must not hold a cancel for long
 MAX_FRAMES = 100_000         # scene frames keyed in one bake
 MAX_MODEL_SECONDS = 3600.0   # model time generated in one bake (36,000 model frames at 10 fps)
 
@@ -65,7 +64,9 @@ class BakeJob:
         self.f0, self.f1 = f0, f1
         self.fps = scene_fps(scene)
         self.name = name
-        self.driver = FrameDriver(scene, model=model, keep_frames=None)
+        # No helper process: a bake steps back to back, where the helper's job sets the pace and saves nothing,
+        # and Blender crashed now and then in the bake operator's call or its undo step while a helper was there.
+        self.driver = FrameDriver(scene, model=model, keep_frames=None, pipeline=False)
         dt = self.driver.dt
         # Model frames, not scene frames, are the cost: 12 frames at 0.001 fps are 12,000 s of motion.
         self.total = int(math.ceil((f1 - f0) / self.fps / dt - 1e-6)) + 1
@@ -119,7 +120,6 @@ class BakeJob:
         if self._closed:
             return
         self._closed = True
-        self.driver.group.wait_for_helper(HELPER_WAIT_S)
         self.scene.frame_set(self._saved_frame[0], subframe=self._saved_frame[1])
         self._restore_poses()
 
@@ -147,9 +147,6 @@ class BakeJob:
         except BaseException:
             self.cancel()
             raise
-        # the job sent ahead for the segment after the range may still be running in the helper: let nothing of
-        # the bake still be under way when the operator returns and Blender runs its own code (an undo step)
-        driver.group.wait_for_helper(HELPER_WAIT_S)
         self.scene.frame_set(self._saved_frame[0], subframe=self._saved_frame[1])
         # the seed in each action's name is its ego's: the first ego's for the ego and the target
         seeds = [self.scene.remogen.seed] * (len(self.posed) - len(driver.others)) + [e.source.seed for e in driver.others]

@@ -127,7 +127,8 @@ def run(args: argparse.Namespace) -> None:
         n_scene = int(round(args.frames * driver.dt * fps))
         res = bake(scene, scene.frame_start, scene.frame_start + n_scene - 1, model=model)
         _emit(metric="bake_model_fps", value=round(res.model_fps, 1), model_frames=res.model_frames,
-              scene_frames=res.frames, seconds=round(res.seconds, 3), target_min=150.0, **common)
+              scene_frames=res.frames, seconds=round(res.seconds, 3), target_min=150.0,
+              **{**common, "helper_process": False})   # a bake never uses the helper
     finally:
         unregister()
 

@@ -95,7 +95,9 @@ def other_egos(scene: bpy.types.Scene) -> list[OtherEgo]:
 class FrameDriver:
     """Running ReMoGen egos bound to one scene's partner, scene collection, goal, egos and target."""
 
-    def __init__(self, scene: bpy.types.Scene, model: Any = None, keep_frames: int | None = 600) -> None:
+    def __init__(self, scene: bpy.types.Scene, model: Any = None, keep_frames: int | None = 600,
+                 pipeline: bool | None = None) -> None:
+        """`pipeline`: run each segment's diffusion in the runtime's helper process (None: the preference)."""
         st = scene.remogen
         if torch_error():                       # the most basic problem first
             raise UserError(torch_error())
@@ -121,7 +123,8 @@ class FrameDriver:
         self.group = rt.ReactionGroup(
             self.model, [rt.EgoSettings(text=src.text, seed=src.seed, alpha=_alpha(src), guidance=_guidance(src),
                                         fwsr=src.use_fwsr, cleanup=st.use_foot_lock) for src in self._sources(st)],
-            scene=None, control=st.use_control, pipeline=use_helper_process())
+            scene=None, control=st.use_control,
+            pipeline=use_helper_process() if pipeline is None else pipeline)
         root, yaw = (self.writer or self.target).start_pose()
         starts = [(root, yaw)] + [e.writer.start_pose() for e in self.others]
         self.group.reset(root_positions=[r for r, _ in starts], yaws=[y for _, y in starts])

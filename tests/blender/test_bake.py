@@ -286,6 +286,17 @@ def test_modal_bake_steps_in_chunks_and_esc_cancels(fresh):
     assert chunked.keys() == whole.keys() and all(np.array_equal(chunked[k], whole[k]) for k in whole)
 
 
+def test_bake_never_uses_the_helper_process(fresh, monkeypatch):
+    """A bake runs every segment in Blender's process, whatever the helper preference says (Live follows it)."""
+    from remogen_blender import frame
+    from remogen_blender.bake import BakeJob
+    _scene(frames=(1, 12))
+    monkeypatch.setattr(frame, "use_helper_process", lambda: True)
+    job = BakeJob(bpy.context.scene)
+    assert job.driver.group.pipeline is False
+    job.cancel()
+
+
 def test_centimetre_partner_is_named_before_the_scene(fresh):
     """A rig and props imported in centimetres: the partner's scale is the message, not the scene's size."""
     d = _scene(frames=(1, 12))
