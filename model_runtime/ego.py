@@ -60,13 +60,16 @@ def frames_from_world_features(index: int, feat_world: torch.Tensor, feet: list[
     pelvis = f[:, ROOT_T]
     joints, world = forward_kinematics_np(rot, pelvis, world_rotations=True)
     contacts = np.zeros((len(f), 2), bool)
+    solved = []
     for i, lock in enumerate(feet):
         mine = rot[i]
         if np.isfinite(joints[i]).all():      # else reported as a model output problem by the caller
             cleaned, contacts[i] = lock.apply(mine, joints[i], world[i])
             if cleaned is not mine:           # a leg was solved: the joints follow the new rotations
                 rot[i] = cleaned
-                joints[i] = forward_kinematics_np(cleaned, pelvis[i])
+                solved.append(i)
+    if solved:                                # once for all of them
+        joints[solved] = forward_kinematics_np(rot[solved], pelvis[solved])
     quats = matrix_to_quat_np(rot).astype(np.float32)
     out = []
     for i in range(len(f)):
@@ -228,9 +231,9 @@ class Ego:
             frames = [None] * len(frames)
         present = torch.tensor([p is not None for p in frames]).unsqueeze(0)
         pts = torch.zeros(1, n, NUM_JOINTS, 3)
-        for i, p in enumerate(frames):
-            if p is not None:
-                pts[0, i] = world_points_to_canonical(torch.from_numpy(p), rot, trans)
+        seen = [i for i, p in enumerate(frames) if p is not None]
+        if seen:                     # every frame at once: the same numbers as one by one, without a loop
+            pts[0, seen] = world_points_to_canonical(torch.from_numpy(np.stack([frames[i] for i in seen])), rot, trans)
         return pts, present
 
     def _paths(self, plans: tuple[torch.Tensor, torch.Tensor] | None = None) -> tuple[np.ndarray, np.ndarray] | None:

@@ -224,8 +224,8 @@ class ReactionGroup:
         if seg is None or seg["f"] >= cfg.future:
             job = self._finish_job()
             seg = self._seg = self._start_segment(job)
-            predicted = [to_world(self.model.stats.denormalize(seg["future"][i, -cfg.history:]),
-                                  e.seg["rot"], e.seg["trans"]) for i, e in enumerate(self.egos)]
+            predicted = [p.clone() for p in self._to_world(seg["future"][:, -cfg.history:])]   # own storage each:
+            # they go to the helper process, and a view would take the whole group's tensor along
             if isinstance(job, RemoteJob) and job.slack >= AHEAD_SLACK and cfg.future > 1:
                 self._pending = self._fix_inputs(predicted, lead=cfg.future)
             else:
@@ -249,8 +249,14 @@ class ReactionGroup:
         if self._job is not None:
             self._job.advance(seg["steps_at"][f])
         seg["f"] = f + 1
-        return [to_world(self.model.stats.denormalize(feat).unsqueeze(0), e.seg["rot"], e.seg["trans"])[0]
-                for e, feat in zip(self.egos, feats_n)]
+        return [w[0] for w in self._to_world(torch.stack(feats_n).unsqueeze(1))]
+
+    def _to_world(self, feats_n: torch.Tensor) -> list[torch.Tensor]:
+        """Normalised features (B, T, D), row i in ego i's canonical frame of the running segment -> each ego's
+        world features (T, D), in one batched transform for the whole group (the same numbers as one by one)."""
+        rot = torch.stack([e.seg["rot"] for e in self.egos])
+        trans = torch.stack([e.seg["trans"] for e in self.egos])
+        return list(to_world(self.model.stats.denormalize(feats_n), rot, trans).unbind(0))
 
     def _refine(self, rows: list[int], f: int) -> list[torch.Tensor]:
         """FWSR for frame f of the segment, for the egos in `rows`: their normalised canonical features."""
@@ -283,8 +289,7 @@ class ReactionGroup:
         job = self._new_job([e.hist_world for e in self.egos], lead=0)
         job.advance(job.total_steps)
         seg = self._start_segment(job)
-        return [to_world(self.model.stats.denormalize(seg["future"][i, :1]), e.seg["rot"], e.seg["trans"])[0]
-                for i, e in enumerate(self.egos)]
+        return [w[0] for w in self._to_world(seg["future"][:, :1])]
 
     def _start_segment(self, job: DiffusionJob) -> dict:
         """Decode a finished job's latents with each ego's real history in its own canonical frame. The
