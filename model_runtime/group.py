@@ -107,12 +107,6 @@ class ReactionGroup:
         worker.ready.wait(timeout)
         return worker.usable
 
-    def wait_for_helper(self, timeout: float = 60.0) -> bool:
-        """Wait until no job this process sent to the helper is still running there, so that no reply comes in
-        after this returns (an application that runs other code next, as Blender does after an operator, wants
-        nothing arriving meanwhile). True when none is (also without pipelining), False after `timeout` s."""
-        return True if self._worker is None else self._worker.wait_idle(timeout)
-
     # ------------------------------------------------------------------ reset
     def reset(self, root_positions: Sequence | None = None, yaws: Sequence[float] | None = None,
               frames: Sequence[EgoFrame | None] | None = None) -> None:
@@ -379,8 +373,7 @@ class ReactionGroup:
         if (not self._control or not self._control_config.ego_plans or len(self.egos) < 2 or seg is None
                 or seg["f"] != 0 or lead != self.cfg.future):
             return None
-        return [feature_joints(to_world(self.model.stats.denormalize(seg["future"][i]), e.seg["rot"], e.seg["trans"]))
-                for i, e in enumerate(self.egos)]
+        return [feature_joints(w) for w in self._to_world(seg["future"])]
 
     def _steer(self, hist_n: torch.Tensor, canon: list[tuple], lead: int, keep: torch.Tensor | None = None,
                step_size: float | None = None, alphas: list[dict] | None = None) -> LatentSteer:

@@ -214,7 +214,6 @@ class JobWorker:
         self.gone = threading.Event()
         self._results: dict[int, tuple[bytes, float]] = {}   # job id -> (its pickled reply, when it came: monotonic)
         self._dropped: set[int] = set()          # discarded before their reply came: it is dropped then
-        self._in_flight: set[int] = set()        # submitted, reply not back yet
         self._done = threading.Condition()
         self._outbox: queue.Queue = queue.Queue()
         self._ids = itertools.count()
@@ -274,7 +273,6 @@ class JobWorker:
                 self.ready.set()
                 continue
             with self._done:
-                self._in_flight.discard(job_id)
                 if job_id in self._dropped:      # nobody wants it any more
                     self._dropped.discard(job_id)
                 else:
@@ -336,16 +334,8 @@ class JobWorker:
             raise WorkerError(self.problem or "the helper process is still starting")
         key = self._send_model(model)
         job_id = next(self._ids)
-        with self._done:
-            self._in_flight.add(job_id)
         self._send(("job", job_id, key, spec))
         return job_id
-
-    def wait_idle(self, timeout: float = 60.0) -> bool:
-        """Wait until no job sent to the helper is still running there (its reply, wanted or not, is back), so
-        that nothing arrives later: True when so (or when the helper is gone), False after `timeout` seconds."""
-        with self._done:
-            return self._done.wait_for(lambda: not self._in_flight or self.gone.is_set(), timeout)
 
     def has_result(self, job_id: int) -> bool:
         """Whether a submitted job's result (or error) has come back."""

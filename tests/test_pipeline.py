@@ -146,16 +146,3 @@ def test_the_caller_keeps_nothing_of_finished_or_discarded_jobs(tiny_model, work
     with worker._done:
         assert not worker._results and not worker._dropped
 
-
-def test_waiting_for_the_helper_leaves_no_reply_to_come(tiny_model, worker):
-    """After wait_for_helper, every job sent is back (the one sent ahead too): nothing arrives later, while the
-    caller runs other code (inside Blender: an undo step after a bake)."""
-    group = _group(tiny_model, 1, pipeline=True, worker=worker)
-    _rollout(group, frames=tiny_model.cfg.future + 1)     # a segment has started: the next one's job is out
-    job = group._job
-    assert isinstance(job, RemoteJob)
-    assert group.wait_for_helper(timeout=60.0)
-    with worker._done:
-        assert not worker._in_flight
-    assert worker.has_result(job.job_id)
-    assert ReactionGroup(tiny_model, [EgoSettings()]).wait_for_helper(timeout=0.0)   # no helper: nothing to wait for
