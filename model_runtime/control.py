@@ -75,6 +75,10 @@ class ControlConfig:
     rest_weight: float = 20.0
     seam_weight: float = 100.0      # joints accelerate no more across a segment's start than within it ...
     seam_steers: int = 2            # ... in this many gradient steps with the real history, at the boundary,
+    partner_seam_steers: int = 3    # ... or this many where an ego reacts to another character (its partner
+                                    # module turns the latent further from what the history alone would make:
+                                    # val, the approach family's seam ratio 1.32 with 2, 1.18 with 3; walking
+                                    # and standing alone keep 2, where 3 slid walking toes 0.9 -> 10 cm/s)
     keep_weight: float = 5.0        # the rest of the segment stays as the model made it (3 -> 5 on val: walking
                                     # forward turned 24 -> 16 deg per 20 s, the other targets held)
     seam_step_size: float = 1.0     # each this long at most (longer ones made a standing body glide away)

@@ -230,7 +230,7 @@ class ReactionGroup:
             if job is None:          # built at the next step, in the helper process: nothing to spread here
                 seg["steps_at"] = (0,) * cfg.future
             else:
-                seam = self._control_config.seam_steers if self._control else 0
+                seam = seg["seam_steers"]
                 seg["steps_at"] = steps_per_frame(job.total_steps, cfg.future, job.steered_steps + job.final_steers,
                                                   BOUNDARY_COST + seam * STEERED_STEP_COST)
         feats_n = [seg["future"][i, f] for i in range(len(self.egos))]
@@ -292,18 +292,29 @@ class ReactionGroup:
         canon = [e.canonical_history(e.hist_world) for e in self.egos]
         hist_n = torch.cat([c[2] for c in canon])
         cc = self._control_config
-        if self._control and cc.seam_steers and self.cfg.history >= 2:
+        seam_steers = self._seam_steers(job.alpha) if self._control and self.cfg.history >= 2 else 0
+        if seam_steers:
             # the latent was made for a predicted history: join it to the real one without a jump, still
             # under the same costs (its first frame plays now)
             forward = LatentSteer.decode_with_grad(self.model, hist_n, z0)   # also the first step's forward
             made = feature_joints(self.model.stats.denormalize(forward[1].detach()))
             steer = self._steer(hist_n, canon, lead=0, keep=made, step_size=cc.seam_step_size, alphas=job.alpha)
-            for k in range(cc.seam_steers):
+            for k in range(seam_steers):
                 z0 = steer(z0, forward if k == 0 else None)
             z0 = steer.settle(z0)
         for e, (rot, trans, h), alpha in zip(self.egos, canon, job.alpha):
             e.seg = {"rot": rot, "trans": trans, "emitted": h[0], "alpha": alpha}
-        return {"hist_n": hist_n, "z0": z0, "future": self.model.decode(hist_n, z0), "f": 0}
+        return {"hist_n": hist_n, "z0": z0, "future": self.model.decode(hist_n, z0), "f": 0,
+                "seam_steers": seam_steers}
+
+    def _seam_steers(self, alphas: list[dict]) -> int:
+        """How many seam steering steps a segment start takes: more where some ego reacts to another character
+        (a cue frame present, alpha_HHI above 0), since its partner module and cost pull the latent further from
+        a plain continuation of the history. One count for the whole group: the egos steer as one batch."""
+        cc = self._control_config
+        reacting = any(a.get("hhi", 0.0) > 0.0 and any(c is not None for c in e.cue)
+                       for e, a in zip(self.egos, alphas))
+        return cc.partner_seam_steers if reacting else cc.seam_steers
 
     def _fix_inputs(self, hist_worlds: list[torch.Tensor], lead: int) -> tuple:
         """Everything `_new_job` reads, as it is now, for `_build_pending` to build that very job at a later

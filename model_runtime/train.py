@@ -42,7 +42,7 @@ from .devices import resolve_device as training_device
 from .errors import RemogenError
 from .training.ema import EMA
 from .training.loop import past_deadline, rank_and_world, train_stage
-from .training.recipe import DEFAULT_STEPS, RECIPE
+from .training.recipe import DEFAULT_STEPS, RECIPE, WINDOW_RECIPES
 from .training.init_from import start_from_vae
 from .training.report import StageRun, say, summary
 from .training.stages import REQUIRED_STAGES, STAGES
@@ -66,6 +66,10 @@ def main(argv: list[str] | None = None) -> int:
                          "encoder or new captions: the VAE does not depend on text)")
     ap.add_argument("--no-mirror", action="store_true",
                     help="train without the mirrored copies of the clips (data/mirror.py)")
+    ap.add_argument("--windows", default="captured", choices=sorted(WINDOW_RECIPES),
+                    help="how training windows are drawn and captioned: captured (as the data holds them) or "
+                         "balanced (slow-walk and still captions, caption balance, start-up copies for the prior: "
+                         "what the shipped prior's last steps trained on)")
     ap.add_argument("--steps", type=int, default=None, help="steps per stage (default: the stage's RECIPE entry)")
     ap.add_argument("--batch", type=int, default=None, help="batch per rank (default: the stage's RECIPE entry)")
     ap.add_argument("--lr", type=float, default=None, help="learning rate (default: the stage's RECIPE entry)")
@@ -116,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
             runs.append(train_stage(st, out, lib, config=args.config, steps=args.steps, batch=args.batch,
                                     lr=args.lr, seed=args.seed, minutes=left, progress=progress,
                                     mirror=not args.no_mirror, device=device, workers=workers,
-                                    snapshot_every=args.snapshot_every))
+                                    snapshot_every=args.snapshot_every, windows=args.windows))
             if not runs[-1].finished:
                 break
     except RemogenError as exc:

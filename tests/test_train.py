@@ -369,3 +369,36 @@ def test_snapshots_hold_the_ema_model_at_their_step(tmp_path, lib):
     assert any(not torch.equal(sd[k], fd[k]) for k in sd)
     vs, vf = snap.vae.state_dict(), final.vae.state_dict()
     assert all(torch.equal(vs[k], vf[k]) for k in vs)   # frozen stages are untouched
+
+
+def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
+    import numpy as np
+    from model_runtime.data.library import derived_kind
+    from model_runtime.errors import RemogenError
+    from model_runtime.training.recipe import WINDOW_RECIPES
+    from model_runtime.training.setup import build_samplers
+    from synthetic import library_of, rigid_clip, walking_clip
+    stand = np.tile([[4.0, 1.0]], (40, 1)) + np.random.default_rng(0).normal(0, 0.003, (40, 2))
+    sets_off = library_of([("run", "a person runs forward", "bandai", walking_clip(40, 2.5, 0.0, yaw0=0.7)),
+                           ("stand", "a person stands", "cmu", rigid_clip(stand, 1.0)),
+                           ("wave", "a person waves", "bandai", rigid_clip(np.tile([[-3.0, 0.0]], (40, 1)), -1.0))])
+    model = load_model(config="tiny")
+    balanced, captured = WINDOW_RECIPES["balanced"], WINDOW_RECIPES["captured"]
+    tr, va = build_samplers("prior", model, sets_off, seed=0, rank=0, windows=balanced)
+    assert (tr.still_share, tr.slow_walk_share) == (balanced.still_share, balanced.slow_walk_share)
+    if va is not None:     # the held-out windows stay as captured, so held-out losses compare across recipes
+        assert (va.still_share, va.slow_walk_share) == (captured.still_share, captured.slow_walk_share)
+    assert "startup" in {derived_kind(n) for n in tr.lib.names}
+    plain = build_samplers("prior", model, sets_off, seed=0, rank=0, windows=captured)[0]
+    assert "startup" not in {derived_kind(n) for n in plain.lib.names}
+    assert (plain.still_share, plain.slow_walk_share) == (captured.still_share, captured.slow_walk_share)
+
+    out = tmp_path / "run"
+    train_stage("vae", out, lib, config="tiny", steps=1, batch=8, val_every=1, val_batches=1, progress=False)
+    train_stage("prior", out, lib, config="tiny", steps=1, batch=8, val_every=1, val_batches=1, progress=False,
+                windows="balanced")
+    record = load_model(out / "model.pt", warn_untrained=False).meta["stages"]["prior"]["windows"]
+    assert record == {"name": "balanced", "still_share": 0.75, "slow_walk_share": 0.5, "caption_balance": 0.5,
+                      "startup_stages": ["prior"]}
+    with pytest.raises(RemogenError, match="unknown window recipe 'odd'; use one of captured, balanced"):
+        train_stage("prior", out, lib, config="tiny", steps=1, progress=False, windows="odd")

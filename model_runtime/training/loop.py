@@ -19,7 +19,7 @@ from ..devices import device_name
 from ..errors import RemogenError
 from ..model import ReMoGenModel
 from .ema import EMA
-from .recipe import DEFAULT_STEPS, RECIPE, TEXT_DROP
+from .recipe import DEFAULT_STEPS, RECIPE, TEXT_DROP, WINDOW_RECIPES
 from .report import StageRun, say, validation_history
 from .prefetch import batch_stream
 from .samples import SegmentSampler
@@ -37,16 +37,19 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                 batch: int | None = None, lr: float | None = None, seed: int = 0, minutes: float | None = None,
                 ckpt_minutes: float = 3.0, val_every: int = 250, val_batches: int = 4,
                 progress: bool = True, mirror: bool = True, device: str | torch.device = "cpu",
-                workers: int = 0, snapshot_every: int = 0) -> StageRun:
+                workers: int = 0, snapshot_every: int = 0, windows: str = "captured") -> StageRun:
     """Run (or resume) one stage: what was written and how far it got.
 
     device: where the model trains ("cpu", "cuda", "cuda:1"); the checkpoint files hold CPU tensors either way.
     workers: background processes that draw the batches (training/prefetch.py); 0 draws them in this one.
     snapshot_every: also write the EMA model to OUT/snapshots/STAGE_STEP.pt every this many steps (0: never).
+    windows: the name of the training windows' recipe (recipe.WINDOW_RECIPES), recorded with the stage.
     """
     device = torch.device(device)
     if stage not in STAGES:
         raise RemogenError(f"unknown stage {stage!r}; use one of {', '.join(STAGES)}")
+    if windows not in WINDOW_RECIPES:
+        raise RemogenError(f"unknown window recipe {windows!r}; use one of {', '.join(WINDOW_RECIPES)}")
     check_library(lib, resolve_config(config))
     rank, world = rank_and_world()
     note = (lambda msg: say(f"{stage}: {msg}")) if progress and rank == 0 else (lambda msg: None)
@@ -86,7 +89,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     if st is None and stage == "fwsr":
         note("measuring the decoder's sensitivity ...")
         decoder_sensitivity(model, lib, seed)
-    tr, va = build_samplers(stage, model, lib, seed, rank, note, mirror=mirror)
+    tr, va = build_samplers(stage, model, lib, seed, rank, note, mirror=mirror, windows=WINDOW_RECIPES[windows])
     model.to(device)
     loss_mod = StageLoss(model, stage)
     ddp = (torch.nn.parallel.DistributedDataParallel(loss_mod, device_ids=[device] if device.type == "cuda" else None)
@@ -124,6 +127,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                          "val_loss": ([None] + [v for _, v in validation_history(log_path)])[-1]}
         if stage in TEXT_STAGES:
             stages[stage]["text_drop"] = TEXT_DROP
+        stages[stage]["windows"] = {"name": windows, **WINDOW_RECIPES[windows].as_meta()}
         if started_from:
             stages[stage]["started_from"] = {k: v for k, v in started_from.items() if k != "started_from"}
         # a VAE copied from another file (--init-vae) brings its own data: its licence carries over

@@ -1,6 +1,8 @@
 """The shipped default model's training recipe: steps, batch and learning rate per stage, and why."""
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
+
 # The shipped default model's recipe per stage: (steps, batch, learning rate); --steps/--batch/--lr override.
 # VAE and prior train at the paper's 1e-4. The zero-initialised adapters (HHI, HSI, FWSR) get 1e-3: on this
 # CPU's budget of a few thousand steps, 1e-4 moved the HHI held-out loss from 0.1579 to 0.1553 in 1000 steps,
@@ -49,15 +51,16 @@ SLOW_WALK_CAPTION = "a person walks slowly"
 SLOW_WALK_HEADS = ("a person walks", "a person walks forward", "a person walks and turns left",
                    "a person walks and turns right")
 SLOW_WALK_SPEED = (0.4, 0.9)
-SLOW_WALK_SHARE = 0.0    # 0.5 in the candidate described under STARTUP_STAGES
+SLOW_WALK_SHARE = 0.0    # the "captured" windows; 0.5 in the "balanced" ones (WINDOW_RECIPES)
 # The stages that also train on start-up copies (data/startups.py: standing, then setting off into a real clip's
 # motion): no clip of the data starts from standing, and the runtime starts every ego standing. The prior is what
 # decides how a segment follows a standing history; the adapters learn reactions on top of it.
-# Not in the shipped recipe yet. The shipped prior trained 2,000 steps further with ("prior",), SLOW_WALK_SHARE 0.5,
-# CAPTION_BALANCE 0.5 and STILL_SHARE 0.75 met 5 of the text family's 7 kinds on the val split against 3 (run 2.11
-# m/s, walk slowly 0.76) and joined every segment at alpha 0 (worst seam ratio 1.21 against 1.64), but two egos
-# walking at each other came within 0.03 m in one of ten seeds (tests/test_group.py) and the approach family's seam
-# ratio rose to 1.32 (MODEL_CARD.md, "The prior trained further").
+# `train all` trains every stage on the "captured" windows (none here). The shipped prior then trained 2,000 steps
+# further on the "balanced" ones (WINDOW_RECIPES: ("prior",), SLOW_WALK_SHARE 0.5, CAPTION_BALANCE 0.5, STILL_SHARE
+# 0.75): on the val split it met 5 of the text family's 7 kinds against 3 (run 2.67 m/s, jump 20 % of frames
+# airborne) and joined every segment at alpha 0 (worst seam ratio 1.21 against 1.64); with it the approach family
+# needs a third seam steering step (ControlConfig.partner_seam_steers), and standing drifts 0.42 m a minute against
+# 0.35 (MODEL_CARD.md, "The prior trained further").
 STARTUP_STAGES: tuple[str, ...] = ()
 # How often a start-up copy's windows are drawn, against their frame count. At 1 (about 20 % of the prior's frames
 # on the 4 h library) a fine-tune of the prior ran "a person runs" at 2.8-3.1 m/s and "walks slowly" at 0.9, but
@@ -69,8 +72,29 @@ STARTUP_WEIGHT = 0.35
 # as its share of the frames to the power 1 - CAPTION_BALANCE (0: as captured). The 4 h library holds 45,000
 # frames of plain walks and 1,300 of walking backwards, 120 of kicking. With 0.5 (against 0, the same fine-tune
 # otherwise, val split) the text family met 5 of 7 kinds against 3 (jump came back: 12 % of frames airborne against
-# 6 %); walking backwards and kicking still miss. 0 in the shipped recipe (see STARTUP_STAGES).
+# 6 %); walking backwards and kicking still miss. 0 in the "captured" windows, 0.5 in the "balanced" ones.
 CAPTION_BALANCE = 0.0
+
+
+@dataclass(frozen=True)
+class WindowRecipe:
+    """How a stage's training windows are drawn and captioned; the model file records it with the stage."""
+    still_share: float = STILL_SHARE            # still windows captioned "stands still" (STILL_CAPTION)
+    slow_walk_share: float = SLOW_WALK_SHARE    # slow plain walks captioned "walks slowly" (SLOW_WALK_CAPTION)
+    caption_balance: float = CAPTION_BALANCE    # the prior's windows only (CAPTION_BALANCE)
+    startup_stages: tuple[str, ...] = STARTUP_STAGES   # the stages that also see start-up copies
+
+    def as_meta(self) -> dict:
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+
+# `train --windows NAME`. "captured": the windows as the data holds them, what `train all` uses for every stage.
+# "balanced": what the shipped prior's last 2,000 steps trained on (MODEL_CARD.md, "How these weights were made"),
+# chosen on the val split among four such fine-tunes (the model card's "The prior trained further").
+WINDOW_RECIPES = {
+    "captured": WindowRecipe(),
+    "balanced": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",)),
+}
 # FWSR reads the ego's latest frames. At run time those are its own output; trained on real ones only, the
 # refiner learned to continue the real motion and at run time amplified its own: walking forward on the val split
 # (48 episodes) it turned 56 deg per 20 s against 13 without FWSR and slid its planted toes at 25 cm/s against 1.

@@ -11,7 +11,7 @@ from ..config import ModelConfig
 from ..data.library import ClipLibrary
 from ..errors import RemogenError
 from ..model import ReMoGenModel
-from .recipe import CAPTION_BALANCE, MIRROR_STAGES, STARTUP_STAGES
+from .recipe import MIRROR_STAGES, WINDOW_RECIPES, WindowRecipe
 from .samples import SegmentSampler
 
 
@@ -56,10 +56,12 @@ def _derive_then_build(lib, train_ids: list[int], val_ids: list[int], derive: Ca
 
 
 def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int, rank: int,
-                   note: Callable[[str], None] = lambda msg: None, mirror: bool = True
+                   note: Callable[[str], None] = lambda msg: None, mirror: bool = True,
+                   windows: WindowRecipe = WINDOW_RECIPES["captured"]
                    ) -> tuple[SegmentSampler, SegmentSampler | None]:
     """Training and validation samplers for a stage (interaction stages get generated pairs/scenes); no
-    validation sampler (None) when no held-out clip fits the stage's pair rules."""
+    validation sampler (None) when no held-out clip fits the stage's pair rules. `windows`: how the training
+    windows are drawn and captioned (the held-out ones keep the captured recipe, so losses stay comparable)."""
     train_ids, val_ids = lib.split("train"), lib.split("val")
     if mirror and stage in MIRROR_STAGES:
         # mirrored copies first: the derivations below then see real clips only, as before (data/mirror.py)
@@ -68,7 +70,7 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         train_ids = train_ids + [i for i in mirrored if not lib.is_held_out(i)]
         val_ids = val_ids + [i for i in mirrored if lib.is_held_out(i)]
         note(f"{len(mirrored)} mirrored copies of real clips")
-    if stage in STARTUP_STAGES:
+    if stage in windows.startup_stages:
         # standing, then setting off: no clip starts from standing, every ego does (data/startups.py)
         from ..data.startups import add_startups
         lib, started = add_startups(lib, train_ids + val_ids, seed=seed)
@@ -102,7 +104,8 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
     stats = copy.deepcopy(model.stats).cpu()
     # caption balance for the prior's training windows only: held-out losses stay comparable across recipes
     tr = SegmentSampler(lib, train_ids, model.cfg, stats, seed=seed * 1000 + rank, pairs=pairs_tr,
-                        scenes=scenes_tr, caption_balance_power=CAPTION_BALANCE if stage == "prior" else 0.0)
+                        scenes=scenes_tr, caption_balance_power=windows.caption_balance if stage == "prior" else 0.0,
+                        still_share=windows.still_share, slow_walk_share=windows.slow_walk_share)
     if pairs_va == [] or scenes_va == []:
         note(f"note: no held-out clip fits the {stage} stage's rules: it trains without a held-out loss")
         return tr, None
