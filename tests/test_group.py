@@ -224,3 +224,25 @@ def test_ego_plans_on_by_default(tiny_model):
     default, off, on = run(None), run(ControlConfig(ego_plans=0)), run(ControlConfig(ego_plans=1))
     assert np.array_equal(default, on)
     assert not np.array_equal(default, off)       # the plans reach the control from the second segment's job on
+
+
+def test_a_segment_start_takes_more_seam_steps_where_an_ego_reacts_to_someone(tiny_model):
+    """partner_seam_steers where some ego has a cue and alpha_HHI above 0, seam_steers elsewhere (and none
+    without control)."""
+    partner = approaching_partner(12)
+    cc = ControlConfig(seam_steers=2, partner_seam_steers=3)
+
+    def steps_taken(alpha_hhi: float, with_partner: bool, control: bool = True) -> set[int]:
+        g = ReactionGroup(tiny_model, [EgoSettings(seed=1, alpha={"hhi": alpha_hhi, "hsi": 0.0})], control=control,
+                          control_config=cc)
+        g.reset(root_positions=[(0.0, 0.0, 0.0)], yaws=[0.0])
+        taken = set()
+        for i in range(12):
+            g.step(partner=partner[i] if with_partner else None)
+            taken.add(g._seg["seam_steers"])
+        return taken
+
+    assert steps_taken(1.0, with_partner=True) == {3}
+    assert steps_taken(0.0, with_partner=True) == {2}       # alpha_HHI 0 ignores the partner
+    assert steps_taken(1.0, with_partner=False) == {2}
+    assert steps_taken(1.0, with_partner=True, control=False) == {0}
