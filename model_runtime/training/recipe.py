@@ -55,8 +55,8 @@ SLOW_WALK_SHARE = 0.0    # the "captured" windows; 0.5 in the "balanced" ones (W
 # The stages that also train on start-up copies (data/startups.py: standing, then setting off into a real clip's
 # motion): no clip of the data starts from standing, and the runtime starts every ego standing. The prior is what
 # decides how a segment follows a standing history; the adapters learn reactions on top of it.
-# `train all` trains every stage on the "captured" windows (no start-up copies). The shipped prior then trained 2,000 steps
-# further on the "balanced" ones (WINDOW_RECIPES: ("prior",), SLOW_WALK_SHARE 0.5, CAPTION_BALANCE 0.5, STILL_SHARE
+# `train all` trains every stage on the "captured" windows (no start-up copies). The shipped prior then trained
+# 2,000 steps further on the "balanced" ones (WINDOW_RECIPES: ("prior",), SLOW_WALK_SHARE 0.5, CAPTION_BALANCE 0.5, STILL_SHARE
 # 0.75): on the val split it met 5 of the text family's 7 kinds against 3 (run 2.67 m/s, jump 20 % of frames
 # airborne) and joined every segment at alpha 0 (worst seam ratio 1.21 against 1.64); with it the approach family
 # needs a third seam steering step (ControlConfig.partner_seam_steers), and standing drifts 0.42 m a minute against
