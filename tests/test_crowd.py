@@ -76,7 +76,7 @@ def test_command_line_writes_a_report_and_rejects_bad_input(tiny_model, tmp_path
     out = tmp_path / "crowd.json"
     assert main(["--split", "test", "--episodes", "2", "--alphas", "1", "--json", str(out)]) == 0
     report = json.loads(out.read_text())
-    assert report["split"] == "test" and report["alpha=1"]["episodes"] == 2
+    assert report["split"] == "test" and report["alpha=1"]["episodes"] == 2 and report["guidance"] == 5.0
     assert "test crowd alpha=1" in capsys.readouterr().out
     assert main(["--episodes", "0"]) == 2
     err = capsys.readouterr().err.strip()
@@ -85,6 +85,12 @@ def test_command_line_writes_a_report_and_rejects_bad_input(tiny_model, tmp_path
     err = capsys.readouterr().err.strip()
     assert "glide_weight" in err and "\n" not in err
     assert not (tmp_path / "other.json").exists()
+    assert main(["--guidance", "-1", "--json", str(tmp_path / "other.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: --guidance must be a finite number >= 0") and "\n" not in err
+    assert not (tmp_path / "other.json").exists()
+    assert main(["--episodes", "1", "--alphas", "1", "--guidance", "7", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["guidance"] == 7.0
 
 
 

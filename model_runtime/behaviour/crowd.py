@@ -110,12 +110,14 @@ def closest_approach_m(tracks: Sequence[np.ndarray]) -> float:
     return min(min_joint_clearance(a, b) for a, b in combinations(tracks, 2))
 
 
-def roll_out_crowd(model, ep: CrowdEpisode, alpha: float, **group_options) -> list[np.ndarray]:
-    """Each ego's (frames, 22, 3) world joints in one crowd episode, alpha_HHI `alpha` for all."""
+def roll_out_crowd(model, ep: CrowdEpisode, alpha: float, guidance: float = 5.0,
+                   **group_options) -> list[np.ndarray]:
+    """Each ego's (frames, 22, 3) world joints in one crowd episode, alpha_HHI `alpha` and text guidance
+    `guidance` for all."""
     from ..ego import EgoSettings
     from ..group import ReactionGroup
-    g = ReactionGroup(model, [EgoSettings(text=ep.text, seed=s, alpha={"hhi": alpha, "hsi": 0.0}) for s in ep.seeds],
-                      **group_options)
+    g = ReactionGroup(model, [EgoSettings(text=ep.text, seed=s, alpha={"hhi": alpha, "hsi": 0.0}, guidance=guidance)
+                              for s in ep.seeds], **group_options)
     g.reset(root_positions=ep.positions, yaws=ep.yaws)
     tracks = [np.empty((ep.frames, 22, 3), np.float32) for _ in ep.seeds]
     for f in range(ep.frames):
@@ -140,15 +142,15 @@ def summarize(closest: Sequence[float], layouts: Sequence[str], peaks: Sequence[
 
 
 def run_crowd(model, split: str, *, episodes: int = EPISODES_PER_FAMILY, alphas: Iterable[float] = (1.0, 0.0),
-              progress: Callable[[str], None] | None = None, **group_options) -> dict:
+              progress: Callable[[str], None] | None = None, guidance: float = 5.0, **group_options) -> dict:
     """{"alpha=A": summary} plus "closest": {"alpha=A": [per-episode closest approach, m]}."""
     eps = draw_crowd_episodes(split, episodes)
-    report: dict = {"split": split, "family": "crowd", "closest": {}}
+    report: dict = {"split": split, "family": "crowd", "guidance": guidance, "closest": {}}
     for alpha in alphas:
         t0 = time.perf_counter()
         closest, peaks = [], []
         for ep in eps:
-            tracks = roll_out_crowd(model, ep, alpha, **group_options)
+            tracks = roll_out_crowd(model, ep, alpha, guidance, **group_options)
             closest.append(closest_approach_m(tracks))
             peaks.append(max(peak_pelvis_speed(t) for t in tracks))
         key = f"alpha={alpha:g}"
@@ -170,6 +172,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--episodes", type=int, default=EPISODES_PER_FAMILY)
     ap.add_argument("--alphas", type=float, nargs="+", default=[1.0, 0.0])
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--guidance", type=float, default=5.0, help="text guidance of every ego (the runtime's default 5)")
     ap.add_argument("--control-set", action="append", default=[], metavar="NAME=VALUE",
                     help="override one test-time control setting (a field of model_runtime.ControlConfig); "
                          "repeatable. For choosing settings on the val split")
@@ -177,6 +180,9 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.episodes < 1:
         print(f"error: --episodes must be at least 1, got {args.episodes}", file=sys.stderr)
+        return 2
+    if not (args.guidance >= 0.0 and np.isfinite(args.guidance)):
+        print(f"error: --guidance must be a finite number >= 0, got {args.guidance}", file=sys.stderr)
         return 2
     try:
         control_config = control_config_from(args.control_set)
@@ -194,7 +200,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     report = run_crowd(model, args.split, episodes=args.episodes, alphas=args.alphas,
-                       progress=lambda m: print(m, file=sys.stderr, flush=True), control_config=control_config)
+                       progress=lambda m: print(m, file=sys.stderr, flush=True), guidance=args.guidance,
+                       control_config=control_config)
     report["control_set"] = list(args.control_set)
     for key in (k for k in report if k.startswith("alpha=")):
         s = report[key]
