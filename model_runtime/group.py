@@ -292,13 +292,16 @@ class ReactionGroup:
         canon = [e.canonical_history(e.hist_world) for e in self.egos]
         hist_n = torch.cat([c[2] for c in canon])
         cc = self._control_config
-        seam_steers = self._seam_steers(job.alpha) if self._control and self.cfg.history >= 2 else 0
-        if seam_steers:
+        seam_steers = 0
+        if self._control and max(cc.seam_steers, cc.partner_seam_steers) and self.cfg.history >= 2:
             # the latent was made for a predicted history: join it to the real one without a jump, still
             # under the same costs (its first frame plays now)
             forward = LatentSteer.decode_with_grad(self.model, hist_n, z0)   # also the first step's forward
             made = feature_joints(self.model.stats.denormalize(forward[1].detach()))
             steer = self._steer(hist_n, canon, lead=0, keep=made, step_size=cc.seam_step_size, alphas=job.alpha)
+            # more steps where a partner cost acts on some ego: its module and cost pull the latent further from
+            # a plain continuation of the history (one count for the group: the egos steer as one batch)
+            seam_steers = cc.partner_seam_steers if steer.costs.partner.any else cc.seam_steers
             for k in range(seam_steers):
                 z0 = steer(z0, forward if k == 0 else None)
             z0 = steer.settle(z0)
@@ -306,15 +309,6 @@ class ReactionGroup:
             e.seg = {"rot": rot, "trans": trans, "emitted": h[0], "alpha": alpha}
         return {"hist_n": hist_n, "z0": z0, "future": self.model.decode(hist_n, z0), "f": 0,
                 "seam_steers": seam_steers}
-
-    def _seam_steers(self, alphas: list[dict]) -> int:
-        """How many seam steering steps a segment start takes: more where some ego reacts to another character
-        (a cue frame present, alpha_HHI above 0), since its partner module and cost pull the latent further from
-        a plain continuation of the history. One count for the whole group: the egos steer as one batch."""
-        cc = self._control_config
-        reacting = any(a.get("hhi", 0.0) > 0.0 and any(c is not None for c in e.cue)
-                       for e, a in zip(self.egos, alphas))
-        return cc.partner_seam_steers if reacting else cc.seam_steers
 
     def _fix_inputs(self, hist_worlds: list[torch.Tensor], lead: int) -> tuple:
         """Everything `_new_job` reads, as it is now, for `_build_pending` to build that very job at a later
