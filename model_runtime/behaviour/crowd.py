@@ -29,6 +29,8 @@ from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
+from ..checks import check_guidance
+from ..errors import InputError
 from .control_overrides import control_config_from
 from .metrics import GLIDE_SPEED, finite_mean, min_joint_clearance, peak_pelvis_speed
 from .scenarios import EPISODES_PER_FAMILY, SPLIT_SEEDS, WALK_TEXT
@@ -181,8 +183,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.episodes < 1:
         print(f"error: --episodes must be at least 1, got {args.episodes}", file=sys.stderr)
         return 2
-    if not (args.guidance >= 0.0 and np.isfinite(args.guidance)):
-        print(f"error: --guidance must be a finite number >= 0, got {args.guidance}", file=sys.stderr)
+    try:
+        check_guidance(args.guidance)      # the runtime's own rule, before any model loads
+    except InputError as exc:
+        print(f"error: --{exc}", file=sys.stderr)
         return 2
     try:
         control_config = control_config_from(args.control_set)
