@@ -89,6 +89,38 @@ def output_problem(feat_world: torch.Tensor, frame: EgoFrame) -> str | None:
     return None
 
 
+def frames_sound(feat_world: torch.Tensor, frames: Sequence[EgoFrame]) -> bool:
+    """Whether every frame of a step passes `output_problem` (one check for all egos: the usual case)."""
+    joints = np.stack([f.joints for f in frames])
+    return (bool(torch.isfinite(feat_world).all()) and bool((np.abs(joints) < MAX_COORD).all())
+            and all(np.isfinite(f.local_rotations).all() for f in frames))
+
+
+def cue_windows(egos: Sequence["Ego"], rots: Sequence[torch.Tensor], transes: Sequence[torch.Tensor], n: int,
+                hidden: Sequence[bool] | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """`Ego.cue_window` of several egos at once, each in its own frame: (B, n, 22, 3) points, (B, n) present.
+
+    One array is filled and moved by one batched transform; per ego a handful of small torch calls cost more
+    than the maths (the same numbers as ego by ego: tests/test_group.py)."""
+    b = len(egos)
+    hidden = [False] * b if hidden is None else hidden
+    present = np.zeros((b, n), bool)
+    pts = np.zeros((b, n, NUM_JOINTS, 3), np.float32)
+    for i, (e, hide) in enumerate(zip(egos, hidden)):
+        if hide:
+            continue
+        for k, p in enumerate(e.cue[-n:]):
+            if p is not None:
+                present[i, k] = True
+                pts[i, k] = p
+    mask = torch.from_numpy(present)
+    if not present.any():
+        return torch.from_numpy(pts), mask
+    rot, trans = torch.stack(list(rots)).unsqueeze(1), torch.stack(list(transes)).unsqueeze(1)
+    moved = world_points_to_canonical(torch.from_numpy(pts), rot, trans)
+    return torch.where(mask[:, :, None, None], moved, 0.0), mask
+
+
 def as_transform(rot: torch.Tensor, trans: torch.Tensor) -> np.ndarray:
     m = np.eye(4, dtype=np.float32)
     m[:3, :3] = rot.numpy()
@@ -225,16 +257,8 @@ class Ego:
     def cue_window(self, rot: torch.Tensor, trans: torch.Tensor, n: int,
                    hidden: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
         """The latest n frames of the character it reacts to, in a canonical frame, and which are present
-        (none when hidden)."""
-        frames = self.cue[-n:]
-        if hidden:
-            frames = [None] * len(frames)
-        present = torch.tensor([p is not None for p in frames]).unsqueeze(0)
-        pts = torch.zeros(1, n, NUM_JOINTS, 3)
-        seen = [i for i, p in enumerate(frames) if p is not None]
-        if seen:                     # every frame at once: the same numbers as one by one, without a loop
-            pts[0, seen] = world_points_to_canonical(torch.from_numpy(np.stack([frames[i] for i in seen])), rot, trans)
-        return pts, present
+        (none when hidden): (1, n, 22, 3), (1, n)."""
+        return cue_windows([self], [rot], [trans], n, [hidden])
 
     def _paths(self, plans: tuple[torch.Tensor, torch.Tensor] | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """The latest pelvis positions (xy) of the ego and of the character it reacts to, oldest first; None

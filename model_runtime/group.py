@@ -44,7 +44,8 @@ from .checks import Checked, check_control_config, check_partner, check_point, c
 from .control import ControlConfig, LatentSteer, SegmentCosts
 from .distance_field import DistanceField
 from .navigation import FloorMap
-from .ego import Ego, EgoFrame, EgoSettings, frames_from_world_features, output_problem
+from .ego import (Ego, EgoFrame, EgoSettings, cue_windows, frames_from_world_features, frames_sound,
+                  output_problem)
 from .errors import InputError, ModelOutputError
 from .features import feature_joints, to_world
 from .job_spec import JobSpec, build_job
@@ -157,10 +158,12 @@ class ReactionGroup:
             for e, g, (who, cue) in zip(self.egos, targets, cues):
                 e.goal, e.cue_id, e.cue = g, who, cue
             feats = self._slide_frames() if self.slide else self._segment_frames()
+            stacked = torch.stack(feats)
             with np.errstate(over="ignore", invalid="ignore"):   # a broken frame is reported just below
-                out = frames_from_world_features(self._index, torch.stack(feats), [e.feet for e in self.egos])
+                out = frames_from_world_features(self._index, stacked, [e.feet for e in self.egos])
+                sound = frames_sound(stacked, out)
             for i, (feat, frame) in enumerate(zip(feats, out)):
-                problem = output_problem(feat, frame)
+                problem = None if sound else output_problem(feat, frame)
                 if problem:
                     raise ModelOutputError(self._output_error(i, problem))
         except BaseException:   # also KeyboardInterrupt: a half-done step must not stay behind
@@ -255,20 +258,17 @@ class ReactionGroup:
     def _refine(self, rows: list[int], f: int) -> list[torch.Tensor]:
         """FWSR for frame f of the segment, for the egos in `rows`: their normalised canonical features."""
         seg, h = self._seg, self.cfg.history
-        recent, partner, present = [], [], []
-        for i in rows:
-            e = self.egos[i]
-            # the latest H emitted frames, already canonical and normalised in this segment's frame
-            recent.append(e.seg["emitted"][-h:].unsqueeze(0))
-            # alpha_HHI = 0 means "ignore the partner": FWSR's refiner reads partner frames too, so it sees
-            # none (measured: with them it turned a prior-only ego toward the partner)
-            p, m = e.cue_window(e.seg["rot"], e.seg["trans"], h, hidden=e.alpha["hhi"] == 0.0)
-            partner.append(p)
-            present.append(m)
+        egos = [self.egos[i] for i in rows]
+        # the latest H emitted frames, already canonical and normalised in this segment's frame
+        recent = torch.stack([e.seg["emitted"][-h:] for e in egos])
+        # alpha_HHI = 0 means "ignore the partner": FWSR's refiner reads partner frames too, so it sees
+        # none (measured: with them it turned a prior-only ego toward the partner)
+        partner, present = cue_windows(egos, [e.seg["rot"] for e in egos], [e.seg["trans"] for e in egos], h,
+                                       hidden=[e.alpha["hhi"] == 0.0 for e in egos])
         every = len(rows) == len(self.egos)
         z0 = seg["z0"] if every else seg["z0"][rows]
         hist_n = seg["hist_n"] if every else seg["hist_n"][rows]
-        z = self.model.refine(z0, torch.cat(recent), torch.cat(partner), torch.cat(present), f)
+        z = self.model.refine(z0, recent, partner, present, f)
         decoded = self.model.decode(hist_n, z)
         return [decoded[k, f] for k in range(len(rows))]
 
@@ -406,7 +406,7 @@ class ReactionGroup:
 
     def _context_inputs(self, canon: list[tuple]) -> dict:
         """What the context encoders read, per ego in its canonical frame (JobSpec fields)."""
-        cues = [e.cue_window(rot, trans, self.cfg.partner_window) for e, (rot, trans, _) in zip(self.egos, canon)]
+        partner, present = cue_windows(self.egos, [c[0] for c in canon], [c[1] for c in canon], self.cfg.partner_window)
         occupancy = None
         if self._scene is not None:
             occupancy = torch.cat([e.occupancy(self._scene, rot, trans) for e, (rot, trans, _) in zip(self.egos, canon)])
@@ -418,7 +418,7 @@ class ReactionGroup:
                 has_goal = torch.tensor([g is not None for g in goals])
         # The job encodes only the modules it uses: it keeps the alpha it starts with, so a slider moved
         # mid-segment takes effect from the next segment's diffusion (module docstring).
-        return {"partner": torch.cat([c[0] for c in cues]), "present": torch.cat([c[1] for c in cues]),
+        return {"partner": partner, "present": present,
                 "occupancy": occupancy, "goal": goal, "has_goal": has_goal}
 
     # ------------------------------------------------------------------ introspection

@@ -146,3 +146,23 @@ def test_the_caller_keeps_nothing_of_finished_or_discarded_jobs(tiny_model, work
     with worker._done:
         assert not worker._results and not worker._dropped
 
+
+
+def test_weights_changed_in_place_reach_the_helper(tiny_model, worker):
+    """The helper keeps a copy of the model; a weight changed in place (as fine-tuning does) is sent again, so
+    pipelined frames stay those of the changed model."""
+    import copy
+
+    import torch
+    model = copy.deepcopy(tiny_model)
+    piped = _group(model, 1, pipeline=True, worker=worker)
+    _rollout(piped, frames=12)
+    with torch.no_grad():
+        for p in model.denoiser.parameters():
+            p.mul_(1.01)
+    got, remote = _rollout(piped)
+    want, _ = _rollout(_group(model, 1, pipeline=False))
+    before, _ = _rollout(_group(tiny_model, 1, pipeline=False))
+    assert remote > 0
+    np.testing.assert_array_equal(got, want)
+    assert not np.array_equal(got, before)      # the change mattered
