@@ -19,7 +19,7 @@ def test_demo_scene_and_strip(tmp_path, tiny_model_file):
                         str(tiny_model_file), "--shots", "2", "--size", "64"], cwd=tmp_path, env=env,
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
-    assert "remogen demo: baked 118 frames" in r.stdout
+    assert "remogen demo: baked 214 frames" in r.stdout   # the 5 s walk, then 4 s held
     assert (tmp_path / "demo.blend").is_file()
     png = (tmp_path / "demo_strip.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
@@ -37,7 +37,7 @@ def test_demo_with_a_mixamo_target(fresh, tmp_path, tiny_model_file):
                         str(tiny_model_file), "--shots", "2", "--size", "64", "--target", "mixamo"], cwd=tmp_path,
                        env=env, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
-    assert "remogen demo: baked 118 frames" in r.stdout and "onto 'Character'" in r.stdout
+    assert "remogen demo: baked 214 frames" in r.stdout   # the 5 s walk, then 4 s held and "onto 'Character'" in r.stdout
     png = (tmp_path / "demo_strip.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and int.from_bytes(png[16:20], "big") == 128
     bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "demo.blend"))
@@ -109,3 +109,28 @@ def test_strip_camera_shows_ego_table_and_goal(fresh, tmp_path):
             covered = ((s[:, 0] >= t[:, 0].min()) & (s[:, 0] <= t[:, 0].max())
                        & (s[:, 1] >= t[:, 1].min()) & (s[:, 1] <= t[:, 1].max()))
             assert (s[covered, 2] < t[:, 2].min()).all(), f"frame {f}: the table hides {what}"
+
+
+def test_the_demo_ego_walks_to_the_partner_and_waves(fresh):
+    """The demo as it runs (shipped weights, seed 0): the ego ends at the goal beside the partner, about a metre
+    from it, and waves (a wrist above its shoulder moving side to side by the wave kind's 8 cm)."""
+    from model_runtime import load_model
+    from model_runtime.behaviour.metrics import wave_measures
+    from remogen_blender import demo, rig
+    from remogen_blender.bake import bake
+    scene, n = demo.build_scene(fresh)
+    bake(scene, 1, n, model=load_model())
+    st = scene.remogen
+    ego, partner = rig.EgoWriter(st.ego), rig.EgoWriter(st.partner)
+    joints = []
+    for t in np.arange(0.0, (n - 1) / scene.render.fps, 0.1):       # at the model's 10 frames a second
+        f = 1.0 + t * scene.render.fps
+        scene.frame_set(int(f), subframe=f - int(f))
+        joints.append(ego.world_heads(fresh.evaluated_depsgraph_get()))
+    joints = np.array(joints)
+    last_partner = partner.world_heads(fresh.evaluated_depsgraph_get())
+    goal = np.array(st.goal.matrix_world.translation)
+    assert np.linalg.norm(joints[-1, 0, :2] - goal[:2]) < 0.5
+    assert 0.5 < np.linalg.norm(joints[-1, 0, :2] - last_partner[0, :2]) < 1.5
+    sd, raised = wave_measures(joints)
+    assert sd >= 0.08, f"wrist side-to-side sd {sd:.3f} m, raised {raised:.0f} % of frames"
