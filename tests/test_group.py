@@ -246,3 +246,31 @@ def test_a_segment_start_takes_more_seam_steps_where_an_ego_reacts_to_someone(ti
     assert steps_taken(0.0, with_partner=True) == {2}       # alpha_HHI 0 ignores the partner
     assert steps_taken(1.0, with_partner=False) == {2}
     assert steps_taken(1.0, with_partner=True, control=False) == {0}
+
+
+def test_cue_windows_of_several_egos_equal_each_frame_moved_one_by_one():
+    """The batched cue windows give, bit for bit, each present frame moved into its ego's own frame alone, zeros
+    where a frame is missing or the cue is hidden."""
+    from model_runtime.ego import cue_windows
+    from model_runtime.features import world_points_to_canonical
+    from model_runtime.skeleton import yaw_matrix
+
+    class Cued:
+        def __init__(self, cue):
+            self.cue = cue
+    rng = np.random.default_rng(3)
+    egos = [Cued([None if rng.random() < 0.3 else (3.0 * rng.normal(size=(22, 3))).astype(np.float32)
+                  for _ in range(10)]) for _ in range(4)]
+    rots = [yaw_matrix(torch.tensor(float(a))) for a in rng.normal(size=4) * 3.0]
+    transes = [torch.tensor(t, dtype=torch.float32) for t in rng.normal(size=(4, 3)) * 5.0]
+    hidden = [False, True, False, False]
+    for n in (2, 10):
+        pts, present = cue_windows(egos, rots, transes, n, hidden)
+        assert pts.shape == (4, n, 22, 3) and present.shape == (4, n)
+        for i, e in enumerate(egos):
+            for k, frame in enumerate(e.cue[-n:]):
+                if frame is None or hidden[i]:
+                    assert not present[i, k] and not pts[i, k].any()
+                else:
+                    want = world_points_to_canonical(torch.from_numpy(frame), rots[i], transes[i])
+                    assert present[i, k] and torch.equal(pts[i, k], want)
