@@ -79,21 +79,14 @@ def frames_from_world_features(index: int, feat_world: torch.Tensor, feet: list[
     return out
 
 
-def output_problem(feat_world: torch.Tensor, frame: EgoFrame) -> str | None:
-    """What is wrong with a generated frame (non-finite or absurdly far joints), or None."""
-    if not (bool(torch.isfinite(feat_world).all()) and np.isfinite(frame.joints).all()
-            and np.isfinite(frame.local_rotations).all()):
+def output_problem(feat_world: torch.Tensor, joints: np.ndarray, rotations: np.ndarray) -> str | None:
+    """What is wrong with generated frames, one ego's or a step's stacked for all egos (non-finite or absurdly
+    far joints), or None."""
+    if not (bool(torch.isfinite(feat_world).all()) and np.isfinite(joints).all() and np.isfinite(rotations).all()):
         return "non-finite joints"
-    if not (np.abs(frame.joints) < MAX_COORD).all():
+    if not (np.abs(joints) < MAX_COORD).all():
         return f"joints beyond {MAX_COORD:.0e} m"
     return None
-
-
-def frames_sound(feat_world: torch.Tensor, frames: Sequence[EgoFrame]) -> bool:
-    """Whether every frame of a step passes `output_problem` (one check for all egos: the usual case)."""
-    joints = np.stack([f.joints for f in frames])
-    return (bool(torch.isfinite(feat_world).all()) and bool((np.abs(joints) < MAX_COORD).all())
-            and all(np.isfinite(f.local_rotations).all() for f in frames))
 
 
 def cue_windows(egos: Sequence["Ego"], rots: Sequence[torch.Tensor], transes: Sequence[torch.Tensor], n: int,

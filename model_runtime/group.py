@@ -44,8 +44,7 @@ from .checks import Checked, check_control_config, check_partner, check_point, c
 from .control import ControlConfig, LatentSteer, SegmentCosts
 from .distance_field import DistanceField
 from .navigation import FloorMap
-from .ego import (Ego, EgoFrame, EgoSettings, cue_windows, frames_from_world_features, frames_sound,
-                  output_problem)
+from .ego import Ego, EgoFrame, EgoSettings, cue_windows, frames_from_world_features, output_problem
 from .errors import InputError, ModelOutputError
 from .features import feature_joints, to_world
 from .job_spec import JobSpec, build_job
@@ -161,11 +160,13 @@ class ReactionGroup:
             stacked = torch.stack(feats)
             with np.errstate(over="ignore", invalid="ignore"):   # a broken frame is reported just below
                 out = frames_from_world_features(self._index, stacked, [e.feet for e in self.egos])
-                sound = frames_sound(stacked, out)
-            for i, (feat, frame) in enumerate(zip(feats, out)):
-                problem = None if sound else output_problem(feat, frame)
-                if problem:
-                    raise ModelOutputError(self._output_error(i, problem))
+                # one check for all egos (the usual case), then ego by ego to name the one that failed
+                if output_problem(stacked, np.stack([f.joints for f in out]),
+                                  np.stack([f.local_rotations for f in out])):
+                    for i, (feat, frame) in enumerate(zip(feats, out)):
+                        problem = output_problem(feat, frame.joints, frame.local_rotations)
+                        if problem:
+                            raise ModelOutputError(self._output_error(i, problem))
         except BaseException:   # also KeyboardInterrupt: a half-done step must not stay behind
             self._restore(before)
             raise

@@ -218,9 +218,9 @@ class JobWorker:
         self._outbox: queue.Queue = queue.Queue()
         self._ids = itertools.count()
         self._tokens: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-        self._models: dict[int, int] = {}       # id(model) -> weights stamp it was sent with
-        # id(model) -> its parameters and buffers: walking the module tree for them takes about 1 ms a job
-        self._model_tensors: dict[int, list] = {}
+        # id(model) -> (its parameters and buffers, the weights stamp it was sent with); the tensors are kept
+        # because walking the module tree for them takes about 1 ms a job
+        self._models: dict[int, tuple[list, int]] = {}
         self.problem: str | None = None
         exe = _python_executable()
         if exe is None:
@@ -309,23 +309,21 @@ class JobWorker:
 
     def _send_model(self, model: Any) -> int:
         key = id(model)
-        tensors = self._model_tensors.get(key)
-        if tensors is None:
-            tensors = self._model_tensors[key] = list(itertools.chain(model.parameters(), model.buffers()))
+        sent = self._models.get(key)
+        tensors = sent[0] if sent is not None else list(itertools.chain(model.parameters(), model.buffers()))
         stamp = sum(t._version for t in tensors)
-        if self._models.get(key) != stamp:
+        if sent is None or sent[1] != stamp:
             from .checkpoint import model_payload
             buf = io.BytesIO()
             torch.save(model_payload(model), buf)
             self._outbox.put(pickle.dumps(("model", key, buf.getvalue())))
             if key not in self._models:
                 weakref.finalize(model, self._drop_model, key)
-            self._models[key] = stamp
+            self._models[key] = (tensors, stamp)
         return key
 
     def _drop_model(self, key: int) -> None:
         self._models.pop(key, None)
-        self._model_tensors.pop(key, None)
         self._forget(("forget_model", key))
 
     # -------------------------------------------------------------- the API
