@@ -16,9 +16,11 @@ Each copy is
    reverse of detours.slow_to_rest's ease-out), then its next 0.8-1.4 s as captured.
 
 The feet slide during the cross-fade (the stance and the first moving pose differ); everything after it is the
-real clip. Copies are named `<source>#startup0` (`#startup1` from the mirrored copy), keep the source's caption (that is the point: the text says
+real clip. Copies are named `<source>#startup0` (`#startup1` from the mirrored copy, 2 and 3 from reversed
+walks), keep the source's caption (that is the point: the text says
 what the person sets off to do), licence and held-out split (`library.source_name`). Sources are real clips and
-their mirrored copies (data/mirror.py), so set-offs are as often to the left as to the right.
+their mirrored copies (data/mirror.py), so set-offs are as often to the left as to the right, and, where the
+windows include them, reversed forward walks (data/reversals.py): setting off backwards.
 """
 from __future__ import annotations
 
@@ -38,7 +40,10 @@ SPEED_IN, SPEED_OUT = 4, 8  # the first SPEED_IN steps are played over SPEED_OUT
 STAND_FRAMES = (8, 14)      # frames of standing before the cross-fade
 MOVE_FRAMES = (8, 14)       # frames of the moving clip kept after the speed-up
 STAND_HEIGHT = 0.8          # m: the standing clip's pelvis stays above this (no crouching or sitting)
-SOURCE_KINDS = ("", "mirror")   # real clips and their mirrored copies
+# The copies a start-up is made from, and the number that names it: real clips, their mirrored copies
+# (data/mirror.py) and reversed forward walks (data/reversals.py; standing, then setting off backwards).
+STARTUP_NUMBER = {"": 0, "mirror0": 1, "reversed0": 2, "reversed1": 3}
+SOURCE_KINDS = ("", "mirror", "reversed")
 
 
 def speed_up_from_rest(rotations: np.ndarray, pelvis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -98,7 +103,9 @@ def add_startups(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[
         rot, pel = set_off(lib.rotations[sa + s0:sa + s0 + sn], lib.pelvis[sa + s0:sa + s0 + sn],
                            clips.joints(s)[s0 + sn - 1], lib.rotations[a:a + mn], lib.pelvis[a:a + mn],
                            clips.joints(i)[0])
-        # `<source>#startup0` from the real clip, `<source>#startup1` from its mirrored copy
-        name = f"{source_name(lib.names[i])}{DERIVED}startup{int(derived_kind(lib.names[i]) == 'mirror')}"
+        # `<source>#startup0` from the real clip, `<source>#startup1` from its mirrored copy, 2 and 3 from the
+        # reversed copies of the two
+        variant = lib.names[i].split(DERIVED, 1)[1] if is_derived(lib.names[i]) else ""
+        name = f"{source_name(lib.names[i])}{DERIVED}startup{STARTUP_NUMBER[variant]}"
         copies.append(new_clip(lib, i, name, lib.captions[i], rot, pel))
     return extend_library(lib, copies)

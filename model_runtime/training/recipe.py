@@ -74,6 +74,16 @@ STARTUP_WEIGHT = 0.35
 # otherwise, val split) the text family met 5 of 7 kinds against 3 (jump came back: 12 % of frames airborne against
 # 6 %); walking backwards and kicking still miss. 0 in the "captured" windows, 0.5 in the "balanced" ones.
 CAPTION_BALANCE = 0.0
+# The stages that also train on time-reversed copies of plain forward walks, captioned "a person walks backwards"
+# (data/reversals.py): the library's 1,300 frames of real backward walks were too few for the prior to tell the
+# caption from a forward walk's. REVERSAL_WEIGHT: how often a reversed copy's windows are drawn, against their
+# frame count (before caption balance, which counts the copies' frames under their head with the real backward takes).
+# Measured as a 2,000-step fine-tune of the shipped prior ("reversed" windows, val split): "a person walks backwards"
+# went 58 -> 161 deg of travel against facing (0.25: 142, 1.0: 164), but the jump kind fell 11 -> 5-8 % airborne
+# and walking forward's heading moved from run to run (8-52 deg per 20 s); not in the shipped prior (MODEL_CARD.md,
+# "Walking backwards from reversed forward walks").
+REVERSAL_STAGES: tuple[str, ...] = ()
+REVERSAL_WEIGHT = 0.5
 
 
 @dataclass(frozen=True)
@@ -83,6 +93,7 @@ class WindowRecipe:
     slow_walk_share: float = SLOW_WALK_SHARE    # slow plain walks captioned "walks slowly" (SLOW_WALK_CAPTION)
     caption_balance: float = CAPTION_BALANCE    # the prior's windows only (CAPTION_BALANCE)
     startup_stages: tuple[str, ...] = STARTUP_STAGES   # the stages that also see start-up copies
+    reversal_stages: tuple[str, ...] = REVERSAL_STAGES  # the stages that also see reversed forward walks
 
     def as_meta(self) -> dict:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
@@ -94,6 +105,9 @@ class WindowRecipe:
 WINDOW_RECIPES = {
     "captured": WindowRecipe(),
     "balanced": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",)),
+    # the balanced windows and reversed forward walks (data/reversals.py) for the prior
+    "reversed": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",),
+                             reversal_stages=("prior",)),
 }
 # FWSR reads the ego's latest frames. At run time those are its own output; trained on real ones only, the
 # refiner learned to continue the real motion and at run time amplified its own: walking forward on the val split

@@ -70,6 +70,14 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         train_ids = train_ids + [i for i in mirrored if not lib.is_held_out(i)]
         val_ids = val_ids + [i for i in mirrored if lib.is_held_out(i)]
         note(f"{len(mirrored)} mirrored copies of real clips")
+    if stage in windows.reversal_stages:
+        # forward walks played backwards: too few real backward walks to learn the caption from (data/reversals.py);
+        # before the start-up copies, so that some set off backwards
+        from ..data.reversals import add_reversals
+        lib, reversed_ids = add_reversals(lib, train_ids + val_ids, seed=seed)
+        train_ids = train_ids + [i for i in reversed_ids if not lib.is_held_out(i)]
+        val_ids = val_ids + [i for i in reversed_ids if lib.is_held_out(i)]
+        note(f"{len(reversed_ids)} reversed copies of forward walks (walking backwards)")
     if stage in windows.startup_stages:
         # standing, then setting off: no clip starts from standing, every ego does (data/startups.py)
         from ..data.startups import add_startups
