@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from .detours import BLEND_FRAMES, cross_fade, place_stand, resample
-from .library import DERIVED, ClipLibrary, derived_kind, is_derived, source_name
+from .library import DERIVED, ClipLibrary, is_derived, source_name
 from .new_clips import NewClip, extend_library, new_clip
 from .pairs import FPS, ClipCache, facing_xy, is_gesture
 from .stretches import calm_standing
@@ -43,7 +43,11 @@ STAND_HEIGHT = 0.8          # m: the standing clip's pelvis stays above this (no
 # The copies a start-up is made from, and the number that names it: real clips, their mirrored copies
 # (data/mirror.py) and reversed forward walks (data/reversals.py; standing, then setting off backwards).
 STARTUP_NUMBER = {"": 0, "mirror0": 1, "reversed0": 2, "reversed1": 3}
-SOURCE_KINDS = ("", "mirror", "reversed")
+
+
+def variant(name: str) -> str:
+    """"" for a real clip, "mirror0", "reversed1", ... for a derived one (`<source>#<variant>`)."""
+    return name.split(DERIVED, 1)[1] if is_derived(name) else ""
 
 
 def speed_up_from_rest(rotations: np.ndarray, pelvis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -83,7 +87,7 @@ def add_startups(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[
     moving, each set off from a standing clip of the same split. Returns (library, indices of the copies).
 
     Deterministic for a seed; `lib`'s own clips keep their indices."""
-    ids = [i for i in clip_ids if derived_kind(lib.names[i]) in SOURCE_KINDS]
+    ids = [i for i in clip_ids if variant(lib.names[i]) in STARTUP_NUMBER]
     movers = [i for i in ids if starts_moving(lib.pelvis[lib.offsets[i]:lib.offsets[i + 1]])]
     clips = ClipCache(lib, movers + [i for i in ids if not is_derived(lib.names[i])])
     stands = [i for i in calm_standing(lib, clips, ids, STAND_FRAMES[1] + BLEND_FRAMES)
@@ -105,7 +109,6 @@ def add_startups(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[
                            clips.joints(i)[0])
         # `<source>#startup0` from the real clip, `<source>#startup1` from its mirrored copy, 2 and 3 from the
         # reversed copies of the two
-        variant = lib.names[i].split(DERIVED, 1)[1] if is_derived(lib.names[i]) else ""
-        name = f"{source_name(lib.names[i])}{DERIVED}startup{STARTUP_NUMBER[variant]}"
+        name = f"{source_name(lib.names[i])}{DERIVED}startup{STARTUP_NUMBER[variant(lib.names[i])]}"
         copies.append(new_clip(lib, i, name, lib.captions[i], rot, pel))
     return extend_library(lib, copies)

@@ -46,12 +46,19 @@ def check_library(lib: ClipLibrary, cfg: ModelConfig) -> None:
                            "add longer clips")
 
 
-def _derive_then_build(lib, train_ids: list[int], val_ids: list[int], derive: Callable, build: Callable, seed: int):
-    """Add derived clips (each joins its source clip's split), then build the stage's pairs or scenes for
-    both splits. Returns (library, train ids, held-out ids, built for training, built for held-out)."""
+def _derive(lib, train_ids: list[int], val_ids: list[int], derive: Callable, seed: int):
+    """Add derived clips made from both splits; each joins its source clip's split. Returns (library, train ids,
+    held-out ids, number of derived clips)."""
     lib, derived = derive(lib, train_ids + val_ids, seed=seed)
     train_ids = train_ids + [i for i in derived if not lib.is_held_out(i)]
     val_ids = val_ids + [i for i in derived if lib.is_held_out(i)]
+    return lib, train_ids, val_ids, len(derived)
+
+
+def _derive_then_build(lib, train_ids: list[int], val_ids: list[int], derive: Callable, build: Callable, seed: int):
+    """Add derived clips (each joins its source clip's split), then build the stage's pairs or scenes for
+    both splits. Returns (library, train ids, held-out ids, built for training, built for held-out)."""
+    lib, train_ids, val_ids, _ = _derive(lib, train_ids, val_ids, derive, seed)
     return lib, train_ids, val_ids, build(lib, train_ids, seed=seed), build(lib, val_ids, seed=seed + 1)
 
 
@@ -66,25 +73,19 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
     if mirror and stage in MIRROR_STAGES:
         # mirrored copies first: the derivations below then see real clips only, as before (data/mirror.py)
         from ..data.mirror import add_mirrors
-        lib, mirrored = add_mirrors(lib, train_ids + val_ids, seed=seed)
-        train_ids = train_ids + [i for i in mirrored if not lib.is_held_out(i)]
-        val_ids = val_ids + [i for i in mirrored if lib.is_held_out(i)]
-        note(f"{len(mirrored)} mirrored copies of real clips")
+        lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids, add_mirrors, seed)
+        note(f"{n} mirrored copies of real clips")
     if stage in windows.reversal_stages:
         # forward walks played backwards: too few real backward walks to learn the caption from (data/reversals.py);
         # before the start-up copies, so that some set off backwards
         from ..data.reversals import add_reversals
-        lib, reversed_ids = add_reversals(lib, train_ids + val_ids, seed=seed)
-        train_ids = train_ids + [i for i in reversed_ids if not lib.is_held_out(i)]
-        val_ids = val_ids + [i for i in reversed_ids if lib.is_held_out(i)]
-        note(f"{len(reversed_ids)} reversed copies of forward walks (walking backwards)")
+        lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids, add_reversals, seed)
+        note(f"{n} reversed copies of forward walks (walking backwards)")
     if stage in windows.startup_stages:
         # standing, then setting off: no clip starts from standing, every ego does (data/startups.py)
         from ..data.startups import add_startups
-        lib, started = add_startups(lib, train_ids + val_ids, seed=seed)
-        train_ids = train_ids + [i for i in started if not lib.is_held_out(i)]
-        val_ids = val_ids + [i for i in started if lib.is_held_out(i)]
-        note(f"{len(started)} start-up copies (standing, then setting off)")
+        lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids, add_startups, seed)
+        note(f"{n} start-up copies (standing, then setting off)")
     pairs_tr = pairs_va = scenes_tr = scenes_va = None
     if stage in ("hhi", "fwsr"):
         from ..data.hhi_copies import add_hhi_copies
