@@ -399,6 +399,6 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
                 windows="balanced")
     record = load_model(out / "model.pt", warn_untrained=False).meta["stages"]["prior"]["windows"]
     assert record == {"name": "balanced", "still_share": 0.75, "slow_walk_share": 0.5, "caption_balance": 0.5,
-                      "startup_stages": ["prior"], "reversal_stages": []}
+                      "startup_stages": ["prior"], "reversal_stages": [], "turn_arrival_stages": []}
     with pytest.raises(RemogenError, match="unknown window recipe 'odd'; use one of captured, balanced, reversed"):
         train_stage("prior", out, lib, config="tiny", steps=1, progress=False, windows="odd")

@@ -84,6 +84,11 @@ CAPTION_BALANCE = 0.0
 # "Walking backwards from reversed forward walks").
 REVERSAL_STAGES: tuple[str, ...] = ()
 REVERSAL_WEIGHT = 0.5
+# The stages that also train on turn-then-walk arrivals (data/turn_arrivals.py: standing, turning on the spot toward
+# a goal 45-180 deg off facing, walking there and stopping): every other HSI copy starts out walking toward a goal
+# ahead, and without these the HSI module (control off, val) reached 2 of 23 goals more than 100 deg off facing.
+TURN_ARRIVAL_STAGES: tuple[str, ...] = ()
+TURN_ARRIVAL_WEIGHT = 3.0   # how often their windows are drawn, against their frame count
 
 
 @dataclass(frozen=True)
@@ -94,6 +99,7 @@ class WindowRecipe:
     caption_balance: float = CAPTION_BALANCE    # the prior's windows only (CAPTION_BALANCE)
     startup_stages: tuple[str, ...] = STARTUP_STAGES   # the stages that also see start-up copies
     reversal_stages: tuple[str, ...] = REVERSAL_STAGES  # the stages that also see reversed forward walks
+    turn_arrival_stages: tuple[str, ...] = TURN_ARRIVAL_STAGES  # ... and turn-then-walk arrivals
 
     def as_meta(self) -> dict:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
@@ -108,6 +114,8 @@ WINDOW_RECIPES = {
     # the balanced windows and reversed forward walks (data/reversals.py) for the prior
     "reversed": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",),
                              reversal_stages=("prior",)),
+    # the captured windows, and turn-then-walk arrivals for the HSI stage
+    "turns": WindowRecipe(turn_arrival_stages=("hsi",)),
 }
 # FWSR reads the ego's latest frames. At run time those are its own output; trained on real ones only, the
 # refiner learned to continue the real motion and at run time amplified its own: walking forward on the val split

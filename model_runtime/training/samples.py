@@ -26,7 +26,7 @@ from ..data.stretches import split_style
 from ..features import JOINT_DELTA, ROOT_T, FeatureStats, canonicalize, to_canonical, world_points_to_canonical
 from ..skeleton import NUM_JOINTS, forward_kinematics
 from .recipe import (REVERSAL_WEIGHT, SLOW_WALK_CAPTION, SLOW_WALK_HEADS, SLOW_WALK_SHARE, SLOW_WALK_SPEED,
-                     STARTUP_WEIGHT, STILL_CAPTION, STILL_SHARE, STILL_SPEED, STILL_TRAVEL)
+                     STARTUP_WEIGHT, STILL_CAPTION, STILL_SHARE, STILL_SPEED, STILL_TRAVEL, TURN_ARRIVAL_WEIGHT)
 
 FPS = 10.0
 
@@ -77,7 +77,7 @@ GOAL_SHARE = 0.5          # share of HSI windows drawn among those that reach it
 # windows by frame count; drawn 3x as often so that walking around something is not a rare event.
 SCENE_KIND_WEIGHT = {"detour": 3.0}
 # Derived clips drawn more or less often than their frame count (library.derived_kind -> factor).
-CLIP_KIND_WEIGHT = {"startup": STARTUP_WEIGHT, "reversed": REVERSAL_WEIGHT}
+CLIP_KIND_WEIGHT = {"startup": STARTUP_WEIGHT, "reversed": REVERSAL_WEIGHT, "turnarrive": TURN_ARRIVAL_WEIGHT}
 
 
 @dataclass
@@ -126,10 +126,10 @@ class SegmentSampler:
         if not self.items:
             raise ValueError(f"no clip is long enough for a {self.span}-frame segment")
         weights = np.array([lib.frames(i) - self.span for i, _ in self.items], np.float64)
+        weights *= np.array([CLIP_KIND_WEIGHT.get(derived_kind(lib.names[i]), 1.0) for i, _ in self.items])
         if scenes is not None:
             weights *= np.array([SCENE_KIND_WEIGHT.get(scenes[k].kind, 1.0) for _, k in self.items])
         else:
-            weights *= np.array([CLIP_KIND_WEIGHT.get(derived_kind(lib.names[i]), 1.0) for i, _ in self.items])
             weights *= caption_balance(lib, [i for i, _ in self.items], caption_balance_power)
         self.weights = torch.from_numpy(weights / weights.sum())
         self.gen = torch.Generator().manual_seed(seed)

@@ -55,6 +55,18 @@ def _derive(lib, train_ids: list[int], val_ids: list[int], derive: Callable, see
     return lib, train_ids, val_ids, len(derived)
 
 
+def _chain(*derives: Callable) -> Callable:
+    """One derivation that runs `derives` in turn, each on the clips given (real ones: the derived clips of one
+    are never the sources of the next), and returns the library with all their copies."""
+    def derive(lib, clip_ids: list[int], seed: int = 0):
+        new: list[int] = []
+        for d in derives:
+            lib, made = d(lib, clip_ids, seed=seed)
+            new += made
+        return lib, new
+    return derive
+
+
 def _derive_then_build(lib, train_ids: list[int], val_ids: list[int], derive: Callable, build: Callable, seed: int):
     """Add derived clips (each joins its source clip's split), then build the stage's pairs or scenes for
     both splits. Returns (library, train ids, held-out ids, built for training, built for held-out)."""
@@ -102,11 +114,16 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
                                f"the {stage} stage cannot train on this library; the stages before it are saved")
     if stage == "hsi":
         from ..data.detours import add_arrivals
+        from ..data.turn_arrivals import add_turn_arrivals
         from ..data.pairs import build_hsi_scenes
         note(f"building scenes for {len(train_ids) + len(val_ids)} clips (detour copies of straight walks, then "
              "obstacles and goals) ...")
         # detour-and-stop copies of straight walks: the data has no stop at a target, no walk around anything
-        lib, train_ids, val_ids, scenes_tr, scenes_va = _derive_then_build(lib, train_ids, val_ids, add_arrivals,
+        derive = add_arrivals
+        if stage in windows.turn_arrival_stages:
+            # and turning on the spot toward a goal beside or behind, then walking there (data/turn_arrivals.py)
+            derive = _chain(add_arrivals, add_turn_arrivals)
+        lib, train_ids, val_ids, scenes_tr, scenes_va = _derive_then_build(lib, train_ids, val_ids, derive,
                                                                            build_hsi_scenes, seed)
         note(f"{len(scenes_tr)} training and {len(scenes_va)} held-out HSI scenes")
     # the samplers keep a CPU copy of the statistics: the model itself may move to a GPU after this

@@ -16,7 +16,7 @@ def hsi_goal(joints: np.ndarray, path: PathInfo, name: str) -> np.ndarray:
     mid-stride), GOAL_LEAD seconds further along its final heading, so a goal under the ego always means
     "stop here" and a goal ahead "keep going" (data/detours.py makes the stops)."""
     end = joints[-1, 0, :2].astype(np.float64)
-    stopped = derived_kind(name) in ("arrive", "detour")
+    stopped = derived_kind(name) in ("arrive", "detour", "turnarrive")
     if not stopped and path.end_speed >= STOPPED_SPEED:
         end = end + min(GOAL_LEAD_MAX, GOAL_LEAD * path.end_speed) * path.h_end
     return np.array([end[0], end[1], 0.0], np.float32)

@@ -9,6 +9,8 @@ walls, tables, low steps) with a goal from its own path (goals.hsi_goal), one of
                    turned copies, an exception to the real-ego rule, since no clip walks around anything or
                    stops at a target): a box or table on the walk's original straight line beside the
                    detour's widest point, as wide as the detour leaves room for; the goal is where it stops.
+A turn-then-walk arrival (`<name>#turnarrive<k>`, data/turn_arrivals.py) takes beside_path or corridor, its goal
+where it stops.
 Every obstacle is pushed out of the ego's swept volume (all joints, plus a body margin) along one axis,
 so the real path stays free; the voxelised scene is then checked joint by joint.
 """
@@ -139,6 +141,8 @@ def _detour_box(joints: np.ndarray, path: PathInfo, rng: np.random.Generator) ->
 def _hsi_kinds(path: PathInfo, name: str = "") -> list[str]:
     if derived_kind(name) == "detour":
         return ["detour"]
+    if derived_kind(name) == "turnarrive":    # its turn is on the spot: no pre-turn path for block_turn to block
+        return ["beside_path", "corridor"]
     if path.turning:
         return ["block_turn", "beside_path", "corridor"]
     if path.travel >= MOVING_DISTANCE:

@@ -1,0 +1,95 @@
+"""Turn-then-walk arrivals: a person standing turns on the spot toward a goal beside or behind them, walks there
+and stops.
+
+Why: the goal family asks for goals 0-180 deg off the ego's facing, and every HSI copy so far
+(detours.add_arrivals) starts out walking toward a goal ahead; no clip of the data turns on the spot and then
+walks off (their turns happen mid-walk). Measured with the HSI module trained without these (val split, goal
+family, test-time control off): of the goals more than 100 deg off facing, 2 of 23 reached; the ego walks on
+forward, away from them.
+
+Each copy is
+
+1. a stretch of a calm real standing clip of the same split, turned rigidly about its pelvis from `angle` off
+   the walk's heading to the walk's heading (45-180 deg either way, data/turns.py's pivot turn and speed);
+2. a set-off into a straight stretch of a real forward walk (startups.set_off: cross-fade, speed-up from rest);
+3. that walk slowed to rest and cross-faded into another calm standing clip (detours.arrive).
+
+The feet pivot rather than step during the turn (as in the turned copies of data/turns.py) and slide during the
+cross-fades; the walk itself is real. Copies are named `<source walk>#turnarrive<k>`, keep the walk's caption,
+licence and held-out split, and feed the HSI stage, whose goal is where the copy stands at its end
+(pairs/goals.py).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .detours import BLEND_FRAMES, STAND_FRAMES, WALK_FRAMES, arrive, stop_frame, straight_starts
+from .library import ClipLibrary, is_derived
+from .new_clips import NewClip, copy_name, extend_library, new_clip
+from .pairs import FPS, ClipCache, is_gesture
+from .startups import set_off
+from .stretches import calm_standing
+from .turns import TURN_SPEED, pivot_turn, turn_profile
+
+KIND = "turnarrive"
+COPIES = 2                        # per source walk
+TURN_RANGE = (np.radians(45.0), np.pi)   # |angle| between the standing facing and the walk's heading
+ONSET_FRAMES = (2, 4)             # standing frames before the turn starts
+SETTLE_FRAMES = (1, 3)            # standing frames between the end of the turn and the set-off's cross-fade
+
+
+def turn_frames(angle: float) -> int:
+    """Frames a pivot turn by `angle` takes (turns.turn_profile's duration, rounded up)."""
+    return int(np.ceil(max(2.0, abs(angle) / TURN_SPEED * FPS)))
+
+
+def turned_stance(rotations: np.ndarray, pelvis: np.ndarray, onset: int, angle: float) -> tuple[np.ndarray, np.ndarray]:
+    """A standing stretch that starts `angle` (radians, counter-clockwise seen from above) away from its own last
+    facing and turns back to it from frame `onset` on: its frames after the turn are the stretch unchanged."""
+    yaw = turn_profile(len(pelvis), onset, angle) - angle
+    return pivot_turn(rotations, pelvis, yaw)
+
+
+def add_turn_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[ClipLibrary, list[int]]:
+    """A new library: `lib` plus COPIES turn-then-walk arrivals of every real forward walk of `clip_ids` with a
+    long enough straight stretch, their standing parts taken from calm standing clips of the same split.
+    Returns (library, indices of the copies). Deterministic for a seed; `lib`'s own clips keep their indices."""
+    ids = [i for i in clip_ids if not is_derived(lib.names[i])]
+    clips = ClipCache(lib)
+    walks = [i for i in ids if clips.path(i).moving and clips.path(i).forwardness >= 0.8]
+    longest_stance = ONSET_FRAMES[1] + turn_frames(TURN_RANGE[1]) + SETTLE_FRAMES[1] + BLEND_FRAMES
+    need = max(longest_stance, STAND_FRAMES[1] + BLEND_FRAMES)
+    stands = [i for i in calm_standing(lib, clips, ids, need) if not is_gesture(lib.captions[i])]
+    pools = {side: [i for i in stands if lib.is_held_out(i) == side] for side in (False, True)}
+    copies: list[NewClip] = []
+    for i in walks:
+        pool = pools[lib.is_held_out(i)]
+        if not pool:
+            continue
+        a = int(lib.offsets[i])
+        rng = np.random.default_rng([seed, int(i), 31])
+        for k in range(COPIES):
+            angle = float(rng.uniform(*TURN_RANGE)) * (1.0 if rng.random() < 0.5 else -1.0)
+            walk = int(rng.integers(WALK_FRAMES[0], WALK_FRAMES[1] + 1))
+            starts = straight_starts(clips.path(i).xy[:-1], walk + 1)   # the stop may fall up to one frame late
+            if not len(starts):
+                continue
+            start = int(starts[int(rng.integers(len(starts)))])
+            stop = stop_frame(clips.joints(i), start + walk - 6, start + walk + 1) + 1
+            # the walk brought to rest in a standing clip (as detours.arrive does for the straight stops)
+            end = pool[int(rng.integers(len(pool)))]
+            ea, en = int(lib.offsets[end]), int(rng.integers(STAND_FRAMES[0], STAND_FRAMES[1] + 1)) + BLEND_FRAMES
+            e0 = int(rng.integers(0, lib.frames(end) - en + 1))
+            m_rot, m_pel = arrive(lib.rotations[a + start:a + stop], lib.pelvis[a + start:a + stop],
+                                  lib.rotations[ea + e0:ea + e0 + en], lib.pelvis[ea + e0:ea + e0 + en],
+                                  clips.joints(end)[e0])
+            # the stance before it: turned away by `angle`, turning back, then setting off into the walk
+            s = pool[int(rng.integers(len(pool)))]
+            onset = int(rng.integers(ONSET_FRAMES[0], ONSET_FRAMES[1] + 1))
+            sn = onset + turn_frames(angle) + int(rng.integers(SETTLE_FRAMES[0], SETTLE_FRAMES[1] + 1)) + BLEND_FRAMES
+            sa, s0 = int(lib.offsets[s]), int(rng.integers(0, lib.frames(s) - sn + 1))
+            s_rot, s_pel = turned_stance(lib.rotations[sa + s0:sa + s0 + sn], lib.pelvis[sa + s0:sa + s0 + sn],
+                                         onset, angle)
+            rot, pel = set_off(s_rot, s_pel, clips.joints(s)[s0 + sn - 1], m_rot, m_pel, clips.joints(i)[start])
+            copies.append(new_clip(lib, i, copy_name(lib, i, KIND, k), lib.captions[i], rot, pel))
+    return extend_library(lib, copies)
