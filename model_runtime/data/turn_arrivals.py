@@ -4,7 +4,7 @@ and stops.
 Why: the goal family asks for goals 0-180 deg off the ego's facing, and every HSI copy so far
 (detours.add_arrivals) starts out walking toward a goal ahead; no clip of the data turns on the spot and then
 walks off (their turns happen mid-walk). Measured with the HSI module trained without these (val split, goal
-family, test-time control off): of the goals more than 100 deg off facing, 2 of 23 reached; the ego walks on
+family, test-time control off): of the goals more than 100 deg off facing, 2 of 24 reached; the ego walks on
 forward, away from them.
 
 Each copy is

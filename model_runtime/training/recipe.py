@@ -86,7 +86,7 @@ REVERSAL_STAGES: tuple[str, ...] = ()
 REVERSAL_WEIGHT = 0.5
 # The stages that also train on turn-then-walk arrivals (data/turn_arrivals.py: standing, turning on the spot toward
 # a goal 45-180 deg off facing, walking there and stopping): every other HSI copy starts out walking toward a goal
-# ahead, and without these the HSI module (control off, val) reached 2 of 23 goals more than 100 deg off facing.
+# ahead, and without these the HSI module (control off, val) reached 2 of 24 goals more than 100 deg off facing.
 TURN_ARRIVAL_STAGES: tuple[str, ...] = ()
 TURN_ARRIVAL_WEIGHT = 3.0   # how often their windows are drawn, against their frame count
 
