@@ -1,5 +1,6 @@
 """Behaviour targets of the shipped default model with the runtime's defaults (FWSR, test-time control and
-planted-foot cleanup on), on the first 8 episodes of each family of the behaviour suite's val generator.
+planted-foot cleanup on), on the first 8 episodes of each family of the behaviour suite's val generator, and what
+the scene module has learned by itself (control off) on the goal family.
 
 The whole suite (48 episodes a family, val and test splits) is `python -m model_runtime.evaluate --behaviour`;
 README lists every target and what it measures. Only targets the model meets are asserted here; the ones it
@@ -38,6 +39,17 @@ def test_goal_in_any_direction_is_reached_and_the_ego_stops_there(model):
     assert off["reach_percent"] < on["reach_percent"] - 30.0, (on, off)
     assert on["seam_ratio"] <= 1.3, on
     assert off["seam_ratio"] <= 1.3, off          # the prior alone, walking on past the goal, joins its segments too
+
+
+def test_the_scene_module_alone_turns_toward_a_goal_in_any_direction_and_reaches_it(model):
+    """What the HSI module has learned, without test-time control: goals behind and beside the ego included."""
+    def rollouts(alpha):
+        report = run_suite(model, "val", families=("goal",), episodes=REACH_EPISODES, alphas=(alpha,),
+                           keep_tracks=0, control=False)
+        return report["families"]["goal"][f"alpha={alpha:g}"]
+    on, off = rollouts(1.0), rollouts(0.0)
+    assert on["reach_percent"] >= 70.0, on
+    assert off["reach_percent"] < on["reach_percent"] - 30.0, (on, off)
 
 
 def test_goal_past_obstacles_is_reached_without_walking_into_them(model):
