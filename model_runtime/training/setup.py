@@ -114,13 +114,15 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
                                f"the {stage} stage cannot train on this library; the stages before it are saved")
     if stage == "hsi":
         from ..data.detours import add_arrivals
-        from ..data.turn_arrivals import add_turn_arrivals
         from ..data.pairs import build_hsi_scenes
-        note(f"building scenes for {len(train_ids) + len(val_ids)} clips (detour copies of straight walks, then "
+        from ..data.turn_arrivals import add_turn_arrivals
+        turns = stage in windows.turn_arrival_stages
+        copies = "detour and turn-then-walk copies" if turns else "detour copies"
+        note(f"building scenes for {len(train_ids) + len(val_ids)} clips ({copies} of straight walks, then "
              "obstacles and goals) ...")
         # detour-and-stop copies of straight walks: the data has no stop at a target, no walk around anything
         derive = add_arrivals
-        if stage in windows.turn_arrival_stages:
+        if turns:
             # and turning on the spot toward a goal beside or behind, then walking there (data/turn_arrivals.py)
             derive = _chain(add_arrivals, add_turn_arrivals)
         lib, train_ids, val_ids, scenes_tr, scenes_va = _derive_then_build(lib, train_ids, val_ids, derive,
