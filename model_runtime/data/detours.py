@@ -156,6 +156,27 @@ def stop_frame(joints: np.ndarray, lo: int, hi: int) -> int:
     return lo + int(np.argmin(gap))
 
 
+def straight_walk(clips: ClipCache, i: int, walk: int, rng: np.random.Generator) -> tuple[int, int] | None:
+    """(start, exclusive end) of a random straight stretch of clip i about `walk` frames long, ending where the
+    ankles pass each other (stop_frame); None when the clip has no such stretch."""
+    starts = straight_starts(clips.path(i).xy[:-1], walk + 1)   # the stop may fall up to one frame late
+    if not len(starts):
+        return None
+    start = int(starts[int(rng.integers(len(starts)))])
+    return start, stop_frame(clips.joints(i), start + walk - 6, start + walk + 1) + 1
+
+
+def come_to_rest(lib: ClipLibrary, clips: ClipCache, rotations: np.ndarray, pelvis: np.ndarray, stands: list[int],
+                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A walk slowed to rest in a random stretch (STAND_FRAMES, plus the cross-fade) of a random clip of `stands`
+    (`arrive`)."""
+    s = stands[int(rng.integers(len(stands)))]
+    sa, sn = int(lib.offsets[s]), int(rng.integers(STAND_FRAMES[0], STAND_FRAMES[1] + 1)) + BLEND_FRAMES
+    s0 = int(rng.integers(0, lib.frames(s) - sn + 1))
+    return arrive(rotations, pelvis, lib.rotations[sa + s0:sa + s0 + sn], lib.pelvis[sa + s0:sa + s0 + sn],
+                  clips.joints(s)[s0])
+
+
 def add_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[ClipLibrary, list[int]]:
     """A new library: `lib` plus, for every forward walk of `clip_ids` with a long enough straight stretch,
     one copy per entry of COPIES (two detour-and-stop copies and one plain stop, each of a random straight
@@ -186,20 +207,13 @@ def add_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[
                 hold = int(rng.integers(DETOUR_HOLD[0], DETOUR_HOLD[1] + 1))
                 onset = int(rng.integers(3, 9))
                 walk = max(walk, onset + detour_frames(angle, hold) + 6)
-            starts = straight_starts(clips.path(i).xy[:-1], walk + 1)   # the stop may fall up to one frame late
-            if not len(starts):
+            span = straight_walk(clips, i, walk, rng)
+            if span is None:
                 continue
-            start = int(starts[int(rng.integers(len(starts)))])
-            stop = stop_frame(clips.joints(i), start + walk - 6, start + walk + 1) + 1   # exclusive end of the walk
-            w_rot = lib.rotations[a + start:a + stop]
-            w_pel = lib.pelvis[a + start:a + stop]
+            w_rot, w_pel = lib.rotations[a + span[0]:a + span[1]], lib.pelvis[a + span[0]:a + span[1]]
             if kind == "detour":
                 w_rot, w_pel = bend_path(w_rot, w_pel, detour_profile(len(w_pel), onset, angle, hold))
-            s = pool[int(rng.integers(len(pool)))]
-            sa, sn = int(lib.offsets[s]), int(rng.integers(STAND_FRAMES[0], STAND_FRAMES[1] + 1)) + BLEND_FRAMES
-            s0 = int(rng.integers(0, lib.frames(s) - sn + 1))
-            rot, pel = arrive(w_rot, w_pel, lib.rotations[sa + s0:sa + s0 + sn], lib.pelvis[sa + s0:sa + s0 + sn],
-                              clips.joints(s)[s0])
+            rot, pel = come_to_rest(lib, clips, w_rot, w_pel, pool, rng)
             names.append(f"{lib.names[i]}{DERIVED}{kind}{k}")
             caps.append(lib.captions[i])
             srcs.append(lib.sources[i])

@@ -23,13 +23,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .detours import BLEND_FRAMES, STAND_FRAMES, WALK_FRAMES, arrive, stop_frame, straight_starts
-from .library import ClipLibrary, is_derived
+from .detours import BLEND_FRAMES, STAND_FRAMES, WALK_FRAMES, come_to_rest, straight_walk
+from .library import ClipLibrary
 from .new_clips import NewClip, copy_name, extend_library, new_clip
-from .pairs import FPS, ClipCache, is_gesture
+from .pairs import ClipCache, is_gesture
 from .startups import set_off
-from .stretches import calm_standing
-from .turns import TURN_SPEED, pivot_turn, turn_profile
+from .stretches import by_split, calm_standing, walks
+from .turns import pivot_turn, turn_duration, turn_profile
 
 KIND = "turnarrive"
 COPIES = 2                        # per source walk
@@ -39,8 +39,8 @@ SETTLE_FRAMES = (1, 3)            # standing frames between the end of the turn 
 
 
 def turn_frames(angle: float) -> int:
-    """Frames a pivot turn by `angle` takes (turns.turn_profile's duration, rounded up)."""
-    return int(np.ceil(max(2.0, abs(angle) / TURN_SPEED * FPS)))
+    """Whole frames a pivot turn by `angle` takes (turns.turn_profile's duration, rounded up)."""
+    return int(np.ceil(turn_duration(angle)))
 
 
 def turned_stance(rotations: np.ndarray, pelvis: np.ndarray, onset: int, angle: float) -> tuple[np.ndarray, np.ndarray]:
@@ -54,15 +54,12 @@ def add_turn_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> t
     """A new library: `lib` plus COPIES turn-then-walk arrivals of every real forward walk of `clip_ids` with a
     long enough straight stretch, their standing parts taken from calm standing clips of the same split.
     Returns (library, indices of the copies). Deterministic for a seed; `lib`'s own clips keep their indices."""
-    ids = [i for i in clip_ids if not is_derived(lib.names[i])]
-    clips = ClipCache(lib)
-    walks = [i for i in ids if clips.path(i).moving and clips.path(i).forwardness >= 0.8]
+    clips = ClipCache(lib)     # walks and calm_standing take real clips only
     longest_stance = ONSET_FRAMES[1] + turn_frames(TURN_RANGE[1]) + SETTLE_FRAMES[1] + BLEND_FRAMES
     need = max(longest_stance, STAND_FRAMES[1] + BLEND_FRAMES)
-    stands = [i for i in calm_standing(lib, clips, ids, need) if not is_gesture(lib.captions[i])]
-    pools = {side: [i for i in stands if lib.is_held_out(i) == side] for side in (False, True)}
+    pools = by_split(lib, [i for i in calm_standing(lib, clips, clip_ids, need) if not is_gesture(lib.captions[i])])
     copies: list[NewClip] = []
-    for i in walks:
+    for i in walks(lib, clips, clip_ids):
         pool = pools[lib.is_held_out(i)]
         if not pool:
             continue
@@ -70,19 +67,12 @@ def add_turn_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> t
         rng = np.random.default_rng([seed, int(i), 31])
         for k in range(COPIES):
             angle = float(rng.uniform(*TURN_RANGE)) * (1.0 if rng.random() < 0.5 else -1.0)
-            walk = int(rng.integers(WALK_FRAMES[0], WALK_FRAMES[1] + 1))
-            starts = straight_starts(clips.path(i).xy[:-1], walk + 1)   # the stop may fall up to one frame late
-            if not len(starts):
+            span = straight_walk(clips, i, int(rng.integers(WALK_FRAMES[0], WALK_FRAMES[1] + 1)), rng)
+            if span is None:
                 continue
-            start = int(starts[int(rng.integers(len(starts)))])
-            stop = stop_frame(clips.joints(i), start + walk - 6, start + walk + 1) + 1
-            # the walk brought to rest in a standing clip (as detours.arrive does for the straight stops)
-            end = pool[int(rng.integers(len(pool)))]
-            ea, en = int(lib.offsets[end]), int(rng.integers(STAND_FRAMES[0], STAND_FRAMES[1] + 1)) + BLEND_FRAMES
-            e0 = int(rng.integers(0, lib.frames(end) - en + 1))
-            m_rot, m_pel = arrive(lib.rotations[a + start:a + stop], lib.pelvis[a + start:a + stop],
-                                  lib.rotations[ea + e0:ea + e0 + en], lib.pelvis[ea + e0:ea + e0 + en],
-                                  clips.joints(end)[e0])
+            start, stop = span
+            m_rot, m_pel = come_to_rest(lib, clips, lib.rotations[a + start:a + stop], lib.pelvis[a + start:a + stop],
+                                        pool, rng)
             # the stance before it: turned away by `angle`, turning back, then setting off into the walk
             s = pool[int(rng.integers(len(pool)))]
             onset = int(rng.integers(ONSET_FRAMES[0], ONSET_FRAMES[1] + 1))

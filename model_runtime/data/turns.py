@@ -35,10 +35,14 @@ def smoothstep(x: np.ndarray) -> np.ndarray:
     return x * x * (3.0 - 2.0 * x)
 
 
+def turn_duration(angle: float, fps: float = FPS) -> float:
+    """Frames (fractional, at least 2) a turn by `angle` radians takes at TURN_SPEED."""
+    return max(2.0, abs(angle) / TURN_SPEED * fps)
+
+
 def turn_profile(frames: int, onset: int, angle: float, fps: float = FPS) -> np.ndarray:
     """(frames,) yaw added at each frame: 0 before onset, `angle` once the turn is over."""
-    duration = max(2.0, abs(angle) / TURN_SPEED * fps)
-    return angle * smoothstep((np.arange(frames) - onset) / duration)
+    return angle * smoothstep((np.arange(frames) - onset) / turn_duration(angle, fps))
 
 
 def turn_roots(rotations: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
