@@ -84,6 +84,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--snapshot-every", type=int, default=0, metavar="STEPS",
                     help="also save the EMA model to OUT/snapshots/STAGE_STEP.pt every STEPS steps, to choose a "
                          "checkpoint on the val split (python -m model_runtime.behaviour --split val --model FILE)")
+    ap.add_argument("--keep-module", action="store_true",
+                    help="an hhi, hsi or fwsr stage continues from the module in OUT/model.pt (a fine-tune) instead "
+                         "of starting over")
     ap.add_argument("--no-progress", action="store_true", help="no progress bars or status lines")
     args = ap.parse_args(argv)
     if args.threads:
@@ -120,7 +123,8 @@ def main(argv: list[str] | None = None) -> int:
             runs.append(train_stage(st, out, lib, config=args.config, steps=args.steps, batch=args.batch,
                                     lr=args.lr, seed=args.seed, minutes=left, progress=progress,
                                     mirror=not args.no_mirror, device=device, workers=workers,
-                                    snapshot_every=args.snapshot_every, windows=args.windows))
+                                    snapshot_every=args.snapshot_every, windows=args.windows,
+                                    keep_module=args.keep_module))
             if not runs[-1].finished:
                 break
     except RemogenError as exc:

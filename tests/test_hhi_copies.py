@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 import torch
 
+from model_runtime.data.avoidance import KEEP_RIGHT_WITHIN, YIELD_RULE
 from model_runtime.data.detours import bend_pelvis
+from model_runtime.data.face_arrivals import ARRIVE_DISTANCE, ROOM_DISTANCE, ROOM_START_S
 from model_runtime.data.hhi_copies import add_hhi_copies
 from model_runtime.data.library import derived_kind, held_out, is_derived, source_name
 from model_runtime.data.new_clips import partner_clip_name
@@ -142,6 +144,74 @@ def test_step_aside_moves_the_ego_off_the_partners_line(built):
         assert np.allclose(ego[still], ego[0], atol=1e-4)                 # standing until it is near (and 0.4 s)
         assert min_clearance(clip_joints(out, p.ego), p.partner) >= AVOID_CLEARANCE
         assert out.captions[p.ego].startswith("a person steps aside and ")
+
+
+@pytest.fixture(scope="module")
+def yielding():
+    lib = _library()
+    out, new = add_hhi_copies(lib, list(range(len(lib))), seed=3, step_rule=YIELD_RULE, face_arrivals=True)
+    return lib, out, new, build_hhi_pairs(out, new, seed=3)
+
+
+def test_yield_rule_steps_away_from_the_partners_line_when_it_would_arrive(yielding):
+    lib, out = yielding[0], yielding[1]
+    pairs = _of(yielding, "step_aside")
+    for p in pairs:
+        ego = out.pelvis[out.offsets[p.ego]:out.offsets[p.ego + 1], :2].astype(np.float64)
+        partner = p.partner[:, 0, :2].astype(np.float64)
+        line = (partner[-1] - partner[0]) / np.linalg.norm(partner[-1] - partner[0])
+
+        def side(x):   # + : on the partner's left of its line
+            return float((x - partner[0]) @ _left(line))
+        start, end = side(ego[0]), side(ego[-1])
+        assert abs(start) <= 0.3 + 1e-3                                   # it walks (nearly) through the ego's spot
+        if abs(start) >= KEEP_RIGHT_WITHIN + 1e-3:
+            assert np.sign(end) == np.sign(start) and abs(end) >= abs(start) + 0.5 - 1e-3   # away from the line
+        else:
+            assert end <= -0.5 + 1e-3 - abs(start)                          # keeps to the partner's right
+        # still until the partner is at most YIELD_RULE.start_s[1] (and a frame) from the ego's spot
+        speed = np.linalg.norm(np.diff(partner, axis=0), axis=1).mean() * 10.0
+        arrive = np.linalg.norm(partner - ego[0], axis=1) / speed
+        moving = np.flatnonzero(np.linalg.norm(ego - ego[0], axis=1) > 1e-4)
+        assert len(moving) and arrive[moving[0]] <= YIELD_RULE.start_s[1] + 0.1 + 1e-3
+        assert min_clearance(clip_joints(out, p.ego), p.partner) >= AVOID_CLEARANCE
+        assert out.captions[p.ego] == lib.captions[lib.names.index(source_name(out.names[p.ego]))]
+
+
+def test_a_partner_walks_up_and_stops_the_standing_ego_makes_room_then_faces_it(yielding):
+    lib, out = yielding[0], yielding[1]
+    pairs = _of(yielding, "face_arrival")
+    for p in pairs:
+        ej = clip_joints(out, p.ego).astype(np.float64)
+        partner = p.partner.astype(np.float64)
+        spot = ej[0, 0, :2]
+        speed = np.linalg.norm(np.diff(partner[:, 0, :2], axis=0), axis=1) * 10.0
+        assert speed[:5].mean() >= 0.5 and speed[-3:].max() <= 0.2           # walks up, then stands
+        rest = partner[-1, 0, :2]
+        assert ARRIVE_DISTANCE[0] - 0.15 <= np.linalg.norm(rest - spot) <= ARRIVE_DISTANCE[1] + 0.15
+        to_ego = (spot - rest) / np.linalg.norm(spot - rest)
+        assert facing_xy(partner[-1:])[0] @ to_ego >= math.cos(math.radians(30))    # it faces the ego
+        walk = (rest - partner[0, 0, :2]) / np.linalg.norm(rest - partner[0, 0, :2])
+        right = np.array([walk[1], -walk[0]])
+        assert (ej[-1, 0, :2] - spot) @ right >= ROOM_DISTANCE[0] - 0.05        # made room, to the walker's right
+        to_partner = (partner[-1, 0, :2] - ej[-1, 0, :2]) / np.linalg.norm(partner[-1, 0, :2] - ej[-1, 0, :2])
+        assert facing_xy(ej[-1:])[0] @ to_partner >= math.cos(math.radians(25))   # and ends facing it
+        # still until the walker is at most ROOM_START_S[1] s (and a frame) from its spot at the pace it came on at
+        pace = np.linalg.norm(partner[5, 0, :2] - partner[0, 0, :2]) * 10.0 / 5.0
+        moving = np.flatnonzero(np.linalg.norm(ej[:, 0, :2] - spot, axis=1) > 0.02)
+        assert np.linalg.norm(partner[moving[0], 0, :2] - spot) / pace <= ROOM_START_S[1] + 0.1
+        assert min_clearance(ej, partner) >= AVOID_CLEARANCE
+        assert out.captions[p.ego] == lib.captions[lib.names.index(source_name(out.names[p.ego]))]
+
+
+def test_the_step_rules_and_face_arrivals_leave_the_other_copies_as_they_were(built, yielding):
+    a, b = built[1], yielding[1]
+    assert {n for n in a.names if "#stepaside" not in n} == \
+        {n for n in b.names if "#stepaside" not in n and "#greeted" not in n}
+    for i, n in enumerate(a.names):
+        if "stepaside" not in n and n in b.names:
+            j = b.names.index(n)
+            assert np.array_equal(a.pelvis[a.offsets[i]:a.offsets[i + 1]], b.pelvis[b.offsets[j]:b.offsets[j + 1]])
 
 
 def test_follow_keeps_its_distance_behind_a_walking_partner(built):

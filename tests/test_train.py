@@ -80,6 +80,33 @@ def test_a_prior_trained_again_continues_from_its_weights_and_records_them(tmp_p
         assert torch.allclose(a, b, atol=1e-5)
 
 
+def test_an_adapter_stage_starts_over_unless_told_to_keep_its_module(tmp_path, lib):
+    import shutil
+    from model_runtime.errors import RemogenError
+    out = tmp_path / "run"
+    for stage in ("vae", "prior"):
+        train_stage(stage, out, lib, config="tiny", steps=1, batch=8, val_every=1, val_batches=1, progress=False)
+    base = tmp_path / "base"
+    shutil.copytree(out, base)
+    with pytest.raises(RemogenError, match="no trained hhi module to continue from"):
+        train_stage("hhi", base, lib, config="tiny", steps=1, progress=False, keep_module=True)
+    train_stage("hhi", out, lib, config="tiny", steps=3, batch=8, val_every=3, val_batches=1, progress=False)
+    first = load_model(out / "model.pt", warn_untrained=False)
+    runs = {}
+    for keep in (True, False):
+        again = tmp_path / f"again_{keep}"
+        again.mkdir()
+        shutil.copy(out / "model.pt", again / "model.pt")     # a trained file, no state of the stage
+        train_stage("hhi", again, lib, config="tiny", steps=1, batch=8, val_every=1, val_batches=1, progress=False,
+                    lr=1e-9, keep_module=keep)
+        runs[keep] = load_model(again / "model.pt", warn_untrained=False)
+    kept = list(zip(first.mims["hhi"].parameters(), runs[True].mims["hhi"].parameters()))
+    assert all(torch.allclose(a, b, atol=1e-5) for a, b in kept)        # continued from the trained module
+    assert runs[True].meta["stages"]["hhi"]["started_from"]["steps"] == 3
+    fresh = zip(first.mims["hhi"].parameters(), runs[False].mims["hhi"].parameters())
+    assert not all(torch.allclose(a, b, atol=1e-5) for a, b in fresh)    # started over
+
+
 def test_later_stage_without_earlier_says_so(tmp_path, lib):
     from model_runtime.errors import RemogenError
     with pytest.raises(RemogenError, match="train the stages before"):
@@ -399,6 +426,7 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
                 windows="balanced")
     record = load_model(out / "model.pt", warn_untrained=False).meta["stages"]["prior"]["windows"]
     assert record == {"name": "balanced", "still_share": 0.75, "slow_walk_share": 0.5, "caption_balance": 0.5,
-                      "startup_stages": ["prior"], "reversal_stages": [], "turn_arrival_stages": []}
+                      "startup_stages": ["prior"], "reversal_stages": [], "turn_arrival_stages": [],
+                      "step_aside_rule": "ahead", "face_arrivals": False}
     with pytest.raises(RemogenError, match="unknown window recipe 'odd'; use one of captured, balanced, reversed"):
         train_stage("prior", out, lib, config="tiny", steps=1, progress=False, windows="odd")

@@ -21,7 +21,14 @@ stepaside (`<source>#stepaside<k>`)
     comes within 2-3 m the ego's whole body is translated 0.5-0.8 m (more, up to 1 m, where the partner would
     still pass closer than TARGET_CLEARANCE) sideways off the partner's line over about 1 s (smoothstep).
     The step is a synthetic shift of a real clip: the feet slide instead of stepping; the copies teach that
-    and where to make room, not the footwork.
+    and where to make room, not the footwork. `StepRule` says where the partner comes from, when the step
+    starts and what the caption says: AHEAD_RULE is the above; YIELD_RULE (`--windows yield`) is the
+    partner from any direction on a line 0-0.3 m off the ego's spot on either side, the ego stepping away
+    from that line (to the partner's right where the line passes within KEEP_RIGHT_WITHIN, one convention
+    instead of a coin toss the module would average into no step at all), starting 1.0-1.5 s before the
+    partner would reach it (a partner that slows down to stop in front has not yet reached that point), and
+    the clip's own caption kept: the module, not the text, must make room for a partner whatever the ego
+    was told to do.
 
 Both keep the source's licence and held-out split and its caption: a step-aside copy's is prefixed "a person
 steps aside and"; an avoid copy of a walk-and-turn clip, a straight stretch of it, says "a person walks
@@ -29,6 +36,8 @@ forward" in the clip's style. Both store their partner as a clip (new_clips.part
 builder (pairs.hhi, kinds avoid_walker and step_aside) checks again on its FK joints.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -61,8 +70,32 @@ STEP_START = (2.0, 3.0)              # m between the pelvises when the step star
 APPROACH_SPREAD = np.radians(45.0)   # the partner comes from within this of straight ahead of the ego
 PASS_OFFSET = (0.0, 0.2)             # m: its line misses the ego's spot by this, opposite the step
 STEP_AFTER = 5                       # frames after the partner passes the ego's spot
+KEEP_RIGHT_WITHIN = 0.12             # m: a partner's line this close to the ego's spot is yielded to on its right
 STEP_COPIES = 1                      # per calm standing clip
 ATTEMPTS = 6                         # placements tried per copy
+
+
+@dataclass(frozen=True)
+class StepRule:
+    """Where a step-aside copy's partner comes from, when the ego steps and what its caption says."""
+    approach_spread: float = APPROACH_SPREAD    # rad off straight ahead the partner may come from
+    pass_offset: tuple[float, float] = PASS_OFFSET   # m its line misses the ego's spot by
+    either_side: bool = False       # the line may pass on either side (else always opposite a random step)
+    start_m: tuple[float, float] | None = STEP_START  # m between the pelvises when the step starts, or ...
+    start_s: tuple[float, float] | None = None       # ... seconds before the partner would reach the ego's spot
+    duration: tuple[int, int] = STEP_DURATION        # frames (inclusive)
+    prefix_caption: bool = True     # "a person steps aside and ..." (else the standing clip's own caption)
+    keep_right_within: float = KEEP_RIGHT_WITHIN   # m: with either_side, a line this close is passed on its right
+    step_max: float = STEP_MAX      # m: the most a step is widened to keep TARGET_CLEARANCE
+
+
+AHEAD_RULE = StepRule()
+YIELD_RULE = StepRule(approach_spread=np.pi, pass_offset=(0.0, 0.3), either_side=True, start_m=None,
+                      start_s=(1.5, 2.5), duration=(6, 10), prefix_caption=False)
+KEEP_RIGHT_RULE = StepRule(approach_spread=np.pi, pass_offset=(0.0, 0.3), either_side=True, start_m=None,
+                           start_s=(1.5, 2.5), duration=(6, 12), prefix_caption=False, keep_right_within=np.inf,
+                           step_max=1.4)
+STEP_RULES = {"ahead": AHEAD_RULE, "yield": YIELD_RULE, "right": KEEP_RIGHT_RULE}
 
 
 def _left(v: np.ndarray) -> np.ndarray:
@@ -226,8 +259,20 @@ def step_caption(caption: str) -> str:
     return "a person steps aside" + (f" and {rest}" if rest else "")
 
 
-def _step_one(lib: ClipLibrary, clips: ClipCache, s: int, pool: WalkPool, rng: np.random.Generator
-              ) -> tuple[Stretch, np.ndarray, Stretch] | None:
+def _line_and_step(heading: np.ndarray, rule: StepRule, rng: np.random.Generator) -> tuple[float, np.ndarray]:
+    """(signed offset of the partner's line from the ego's spot along the step, unit step direction): the
+    line passes opposite the step, or, with `rule.either_side`, on a random side with the step away from it
+    (to the partner's right within KEEP_RIGHT_WITHIN)."""
+    if not rule.either_side:
+        away = _left(heading) * (1.0 if rng.random() < 0.5 else -1.0)
+        return 0.0, away             # its offset is drawn after the crossing frame (the order AHEAD_RULE's copies keep)
+    miss = float(rng.uniform(*rule.pass_offset)) * (1.0 if rng.random() < 0.5 else -1.0)   # + : partner's left
+    away = -_left(heading) if abs(miss) < rule.keep_right_within else -np.sign(miss) * _left(heading)
+    return miss, away
+
+
+def _step_one(lib: ClipLibrary, clips: ClipCache, s: int, pool: WalkPool, rng: np.random.Generator,
+              rule: StepRule = AHEAD_RULE) -> tuple[Stretch, np.ndarray, Stretch] | None:
     """(standing stretch, per-frame sideways shift (T, 2), placed partner) for standing clip s, or None."""
     frames = min(lib.frames(s), int(rng.integers(STEP_FRAMES[0], STEP_FRAMES[1] + 1)))
     start = int(rng.integers(0, lib.frames(s) - frames + 1))
@@ -236,21 +281,25 @@ def _step_one(lib: ClipLibrary, clips: ClipCache, s: int, pool: WalkPool, rng: n
     if part is None:
         return None
     face = normalized(facing_xy(ego.joints.astype(np.float64)).mean(0))
-    heading = -rotate_xy(face, float(rng.uniform(-APPROACH_SPREAD, APPROACH_SPREAD)))   # walks at the ego
-    away = _left(heading) * (1.0 if rng.random() < 0.5 else -1.0)                      # the step's direction
-    crossing = _crossing_frame(frames, part.speed, STEP_START, STEP_AFTER, rng)
+    heading = -rotate_xy(face, float(rng.uniform(-rule.approach_spread, rule.approach_spread)))   # walks at the ego
+    miss, away = _line_and_step(heading, rule, rng)
+    reach_from = rule.start_m if rule.start_m is not None else tuple(part.speed * t for t in rule.start_s)
+    crossing = _crossing_frame(frames, part.speed, reach_from, STEP_AFTER, rng)
     if crossing is None:
         return None
     tc, reach = crossing
-    at = ego.pelvis[tc, :2] - float(rng.uniform(*PASS_OFFSET)) * away
+    if rule.either_side:
+        at = ego.pelvis[tc, :2] + miss * _left(heading)
+    else:
+        at = ego.pelvis[tc, :2] - float(rng.uniform(*rule.pass_offset)) * away
     partner = moved(part, yaw_of(heading) - yaw_of(part.heading), tc, at)
     dist = np.linalg.norm(ego.pelvis[:, :2] - partner.pelvis[:, :2], axis=1)
     near = np.flatnonzero(dist <= reach)
     if not len(near) or near[0] < MIN_STRAIGHT:
         return None
-    ramp = smoothstep((np.arange(frames) - near[0]) / int(rng.integers(STEP_DURATION[0], STEP_DURATION[1] + 1)))
+    ramp = smoothstep((np.arange(frames) - near[0]) / int(rng.integers(rule.duration[0], rule.duration[1] + 1)))
     target = float(rng.uniform(*TARGET_CLEARANCE))
-    for amount in np.arange(float(rng.uniform(*STEP_DISTANCE)), STEP_MAX + 1e-9, 0.05):
+    for amount in np.arange(float(rng.uniform(*STEP_DISTANCE)), rule.step_max + 1e-9, 0.05):
         shift = amount * ramp[:, None] * away
         j = ego.joints.copy()
         j[..., :2] += shift[:, None, :].astype(np.float32)
@@ -260,22 +309,23 @@ def _step_one(lib: ClipLibrary, clips: ClipCache, s: int, pool: WalkPool, rng: n
 
 
 def step_aside_copies(lib: ClipLibrary, clips: ClipCache, stands: list[int], partners: dict[bool, WalkPool],
-                      seed: int) -> list[NewClip]:
-    """STEP_COPIES step-aside copies (and their partner clips) of each calm standing clip of `stands`; the
-    walking partners come from `partners` on the clip's side of the split."""
+                      seed: int, rule: StepRule = AHEAD_RULE) -> list[NewClip]:
+    """STEP_COPIES step-aside copies (and their partner clips) of each calm standing clip of `stands`, made by
+    `rule`; the walking partners come from `partners` on the clip's side of the split."""
     out: list[NewClip] = []
     for s in stands:
         rng = np.random.default_rng([seed, int(s), 22])
         pool = partners[lib.is_held_out(s)]
         for k in range(STEP_COPIES):
             for _ in range(ATTEMPTS):
-                got = _step_one(lib, clips, s, pool, rng)
+                got = _step_one(lib, clips, s, pool, rng, rule)
                 if got is not None:
                     ego, shift, partner = got
                     pel = ego.pelvis.copy()
                     pel[:, :2] += shift.astype(pel.dtype)
                     name = copy_name(lib, s, "stepaside", k)
-                    out += [new_clip(lib, s, name, step_caption(lib.captions[s]), ego.rotations, pel),
+                    caption = step_caption(lib.captions[s]) if rule.prefix_caption else lib.captions[s]
+                    out += [new_clip(lib, s, name, caption, ego.rotations, pel),
                             new_clip(lib, partner.source, partner_clip_name(name), lib.captions[partner.source],
                                      partner.rotations, partner.pelvis, ego=False)]
                     break

@@ -5,6 +5,8 @@
     stepaside   calm standing clips stepping off a real walker's line (data/avoidance.py)
     arriveface  straight walks slowed to rest into a calm standing clip, for a partner ahead (data/meeting.py)
     follow      straight walks re-timed to follow a real walker (data/following.py)
+    greeted     calm standing clips turning to face a real walker who walks up and stops (data/face_arrivals.py),
+                only where asked for (`face_arrivals`)
 
 Only real clips are copied (a mirrored copy is no source; the random sides and angles cover both ways). Each
 copy keeps its source's held-out split and licence; partners and the standing clips a stop ends in are taken
@@ -12,7 +14,8 @@ from clips of the same split.
 """
 from __future__ import annotations
 
-from .avoidance import STEP_FRAMES, avoid_copies, step_aside_copies
+from .avoidance import AHEAD_RULE, STEP_FRAMES, StepRule, avoid_copies, step_aside_copies
+from .face_arrivals import face_arrival_copies
 from .following import follow_copies
 from .library import ClipLibrary, is_derived
 from .meeting import MIN_STAND, arrive_face_copies
@@ -22,11 +25,13 @@ from .stretches import WalkPool, by_split, calm_standing, walks
 from .turns import add_pivot_turns
 
 
-def add_hhi_copies(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[ClipLibrary, list[int]]:
+def add_hhi_copies(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, step_rule: StepRule = AHEAD_RULE,
+                   face_arrivals: bool = False) -> tuple[ClipLibrary, list[int]]:
     """A new library: `lib` plus the HHI copies of the clips of `clip_ids` (with their partner clips). Returns
     (library, indices of the copies that are egos). Deterministic for a seed; a clip's copies do not depend on
     which other clips are in `clip_ids` (partners come from all of `lib`'s real clips); `lib`'s own clips keep
-    their indices."""
+    their indices. `step_rule`: how the step-aside copies are made (data/avoidance.py); `face_arrivals`: also make
+    the greeted copies."""
     lib, turned = add_pivot_turns(lib, clip_ids, seed=seed)
     real = [i for i in range(len(lib)) if not is_derived(lib.names[i])]
     clips = ClipCache(lib, real)       # FK of the real clips only: the copies never start from a derived one
@@ -37,8 +42,10 @@ def add_hhi_copies(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tupl
     step_stands = [i for i in calm_standing(lib, clips, real, STEP_FRAMES[0]) if i in own]
     end_stands = by_split(lib, calm_standing(lib, clips, real, MIN_STAND))
     new = (avoid_copies(lib, clips, egos, partners, seed)
-           + step_aside_copies(lib, clips, step_stands, partners, seed)
+           + step_aside_copies(lib, clips, step_stands, partners, seed, step_rule)
            + arrive_face_copies(lib, clips, egos, end_stands, seed)
            + follow_copies(lib, clips, egos, partners, seed))
+    if face_arrivals:
+        new += face_arrival_copies(lib, clips, step_stands, partners, end_stands, seed)
     lib, copies = extend_library(lib, new)
     return lib, turned + copies

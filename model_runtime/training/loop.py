@@ -37,13 +37,16 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                 batch: int | None = None, lr: float | None = None, seed: int = 0, minutes: float | None = None,
                 ckpt_minutes: float = 3.0, val_every: int = 250, val_batches: int = 4,
                 progress: bool = True, mirror: bool = True, device: str | torch.device = "cpu",
-                workers: int = 0, snapshot_every: int = 0, windows: str = "captured") -> StageRun:
+                workers: int = 0, snapshot_every: int = 0, windows: str = "captured",
+                keep_module: bool = False) -> StageRun:
     """Run (or resume) one stage: what was written and how far it got.
 
     device: where the model trains ("cpu", "cuda", "cuda:1"); the checkpoint files hold CPU tensors either way.
     workers: background processes that draw the batches (training/prefetch.py); 0 draws them in this one.
     snapshot_every: also write the EMA model to OUT/snapshots/STAGE_STEP.pt every this many steps (0: never).
     windows: the name of the training windows' recipe (recipe.WINDOW_RECIPES), recorded with the stage.
+    keep_module: an adapter stage (hhi, hsi, fwsr) started afresh continues from model.pt's module (a fine-tune)
+    instead of starting over.
     """
     device = torch.device(device)
     if stage not in STAGES:
@@ -78,8 +81,12 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     module = trainable_module(model, stage)
     # a run of a prior or decoder stage that model.pt already holds continues from those weights (a fine-tune): the
     # file then records what it started from (the adapters start over, below; the meta is updated at the end)
-    started_from = model.meta.get("stages", {}).get(stage) if stage in ("prior", "decoder") else None
-    if st is None and stage in ("hhi", "hsi", "fwsr"):
+    fine_tune = ("prior", "decoder") + (("hhi", "hsi", "fwsr") if keep_module else ())
+    started_from = model.meta.get("stages", {}).get(stage) if stage in fine_tune else None
+    if keep_module and st is None and not started_from:
+        raise RemogenError(f"--keep-module: {model_path} has no trained {stage} module to continue from; train the "
+                           f"stage without --keep-module first")
+    if st is None and stage in ("hhi", "hsi", "fwsr") and not keep_module:
         # A fresh start of an adapter stage re-initialises the whole module (seeded), so the result does not
         # depend on an earlier run's weights left in model.pt (measured: HHI warm-started from a run with
         # other pair kinds kept that run's behaviour), then zero-inits it into an exact no-op.

@@ -3,6 +3,7 @@ samplers (with generated partners and scenes for the interaction stages) and the
 from __future__ import annotations
 
 import copy
+import functools
 from typing import Callable
 
 import torch
@@ -106,7 +107,10 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
              "stopping and following copies of real clips, then HHI pairs) ...")
         # copies of real clips for what the data has no example of: a turn on the spot, getting out of a walker's
         # way, stopping at someone, following someone (data/hhi_copies.py)
-        lib, train_ids, val_ids, pairs_tr, pairs_va = _derive_then_build(lib, train_ids, val_ids, add_hhi_copies,
+        from ..data.avoidance import STEP_RULES
+        derive = functools.partial(add_hhi_copies, step_rule=STEP_RULES[windows.step_aside_rule],
+                                   face_arrivals=windows.face_arrivals)
+        lib, train_ids, val_ids, pairs_tr, pairs_va = _derive_then_build(lib, train_ids, val_ids, derive,
                                                                          build_hhi_pairs, seed)
         note(f"{len(pairs_tr)} training and {len(pairs_va)} held-out HHI pairs")
         if not pairs_tr:

@@ -19,9 +19,12 @@ partner, one rule per pair:
                    the partner is that walker, at least AVOID_CLEARANCE away.
     follow         a walk re-timed behind a real walker on its line (`<name>#follow<k>`, data/following.py);
                    the partner is that walker, never closer than FOLLOW_MIN_GAP (pelvis to pelvis).
+    face_arrival   a standing clip turned toward a real walker who walks up to it and stops in front of it
+                   (`<name>#greeted<k>`, data/face_arrivals.py); the partner is that walker, at least
+                   AVOID_CLEARANCE away.
 The first five place bodies from *other* real standing clips, moved rigidly, with a random body scale in
 [0.9, 1.1] and a random timing offset in [-0.5, 0.5] s, never closer than MIN_CLEARANCE to the ego. The
-walking partners of the last three were made with their copy and are stored as clips
+walking partners of the last four were made with their copy and are stored as clips
 (new_clips.partner_clip_name); their clearance is checked again here on their FK joints. A mirrored copy
 (`<name>#mirror0`) is a real motion reflected and follows the real-clip rules.
 
@@ -42,17 +45,17 @@ from .clips import MOVING_DISTANCE, ClipCache, PathInfo, facing_xy, is_gesture
 from .placement import min_clearance, place_standing, standing_frames, standing_partners, standing_source
 
 MIN_CLEARANCE = 0.45      # m between any ego joint and any partner joint; accepted pairs keep at least this
-AVOID_CLEARANCE = 0.3     # m: the same for avoid_walker and step_aside, whose partner passes close by
+AVOID_CLEARANCE = 0.3     # m: the same for the walking partners of avoid_walker, step_aside and face_arrival
 FOLLOW_MIN_GAP = 1.0      # m between the pelvises (floor plane) of a follow pair, at every frame
 SCALE_RANGE = (0.9, 1.1)  # partner body scale
 MAX_SHIFT = 5             # partner timing offset, frames (0.5 s at 10 fps)
 ARRIVE_DISTANCE = (0.9, 1.2)   # m from where an arrive_face copy stops to its partner's pelvis
 HHI_KINDS = ("approach_face", "greet", "avoid_blocker", "turn_to_face", "arrive_face", "avoid_walker", "step_aside",
-             "follow")
+             "follow", "face_arrival")
 # the pair kind of each kind of derived copy (library.derived_kind); a mirrored copy takes the real-clip rules
 COPY_KINDS = {"turn": "turn_to_face", "arriveface": "arrive_face", "avoid": "avoid_walker",
-              "stepaside": "step_aside", "follow": "follow"}
-WALKING_PARTNER_KINDS = ("avoid_walker", "step_aside", "follow")   # the partner is the copy's partner clip
+              "stepaside": "step_aside", "follow": "follow", "greeted": "face_arrival"}
+WALKING_PARTNER_KINDS = ("avoid_walker", "step_aside", "follow", "face_arrival")   # the partner is the copy's partner clip
 
 
 @dataclass(eq=False)
