@@ -9,6 +9,7 @@ import torch
 from model_runtime.data.avoidance import KEEP_RIGHT_WITHIN, YIELD_RULE
 from model_runtime.data.detours import bend_pelvis
 from model_runtime.data.face_arrivals import ARRIVE_DISTANCE, ROOM_DISTANCE, ROOM_START_S
+from model_runtime.data.walk_aside import LINE_OFFSET, ONSET_FRAMES
 from model_runtime.data.hhi_copies import add_hhi_copies
 from model_runtime.data.library import derived_kind, held_out, is_derived, source_name
 from model_runtime.data.new_clips import partner_clip_name
@@ -202,6 +203,37 @@ def test_a_partner_walks_up_and_stops_the_standing_ego_makes_room_then_faces_it(
         assert np.linalg.norm(partner[moving[0], 0, :2] - spot) / pace <= ROOM_START_S[1] + 0.1
         assert min_clearance(ej, partner) >= AVOID_CLEARANCE
         assert out.captions[p.ego] == lib.captions[lib.names.index(source_name(out.names[p.ego]))]
+
+
+@pytest.fixture(scope="module")
+def walking_aside():
+    lib = _library()
+    out, new = add_hhi_copies(lib, list(range(len(lib))), seed=3, walk_aside=True)
+    return lib, out, new, build_hhi_pairs(out, new, seed=3)
+
+
+def test_walk_aside_copies_turn_and_walk_off_the_walkers_line(walking_aside):
+    lib, out, new = walking_aside[0], walking_aside[1], walking_aside[2]
+    assert not any("#stepaside" in out.names[i] for i in new)           # they replace the sliding copies
+    pairs = [p for p in _of(walking_aside, "step_aside") if "#walkaside" in out.names[p.ego]]
+    assert pairs
+    for p in pairs:
+        ej = clip_joints(out, p.ego).astype(np.float64)
+        partner = p.partner[:, 0, :2].astype(np.float64)
+        line = (partner[-1] - partner[0]) / np.linalg.norm(partner[-1] - partner[0])
+
+        def side(x):   # + : on the walker's left of its line
+            return float((x - partner[0]) @ _left(line))
+        start, end = side(ej[0, 0, :2]), side(ej[-1, 0, :2])
+        assert abs(start) <= LINE_OFFSET[1] + 0.05                          # it walks at the ego's spot
+        if abs(start) >= KEEP_RIGHT_WITHIN + 0.05:
+            assert np.sign(end) == np.sign(start) and abs(end) >= abs(start) + 0.3    # away from the line
+        else:
+            assert end <= -0.3 + abs(start)                                   # to the walker's right
+        assert np.linalg.norm(ej[:ONSET_FRAMES[0], 0, :2] - ej[0, 0, :2], axis=1).max() <= 0.05   # stands first
+        assert min_clearance(ej, p.partner) >= AVOID_CLEARANCE
+        stand_captions = {lib.captions[i] for i in range(len(lib)) if "stand" in lib.names[i]}
+        assert out.captions[p.ego] in stand_captions                          # the standing clip's caption
 
 
 def test_the_step_rules_and_face_arrivals_leave_the_other_copies_as_they_were(built, yielding):

@@ -427,6 +427,6 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
     record = load_model(out / "model.pt", warn_untrained=False).meta["stages"]["prior"]["windows"]
     assert record == {"name": "balanced", "still_share": 0.75, "slow_walk_share": 0.5, "caption_balance": 0.5,
                       "startup_stages": ["prior"], "reversal_stages": [], "turn_arrival_stages": [],
-                      "step_aside_rule": "ahead", "face_arrivals": False}
+                      "step_aside_rule": "ahead", "face_arrivals": False, "walk_aside": False}
     with pytest.raises(RemogenError, match="unknown window recipe 'odd'; use one of captured, balanced, reversed"):
         train_stage("prior", out, lib, config="tiny", steps=1, progress=False, windows="odd")

@@ -102,6 +102,7 @@ class WindowRecipe:
     turn_arrival_stages: tuple[str, ...] = TURN_ARRIVAL_STAGES  # ... and turn-then-walk arrivals
     step_aside_rule: str = "ahead"   # how the HHI stage's step-aside copies are made (data/avoidance.py STEP_RULES)
     face_arrivals: bool = False      # the HHI stage also trains on face-an-arrival copies (data/face_arrivals.py)
+    walk_aside: bool = False         # ... and on walk-aside copies instead of step-aside ones (data/walk_aside.py)
 
     def as_meta(self) -> dict:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
@@ -118,13 +119,16 @@ WINDOW_RECIPES = {
                              reversal_stages=("prior",)),
     # the captured windows, and turn-then-walk arrivals for the HSI stage
     "turns": WindowRecipe(turn_arrival_stages=("hsi",)),
-    # Two HHI recipes tried for the learned crossing and not shipped (README, "Getting out of a walker's way"):
+    # HHI recipes tried for the learned crossing and not shipped (README, "Getting out of a walker's way"):
     # step-aside copies with a partner from any direction, the step timed by when the partner would arrive and the
     # clip's own caption (data/avoidance.py YIELD_RULE: away from the partner's line; KEEP_RIGHT_RULE: always to
     # its right), beside copies where a partner walks up and stops and the ego makes room, then faces it
-    # (data/face_arrivals.py). On the val split both left the standing ego in the walker's way more often.
+    # (data/face_arrivals.py); and a third: walk-aside copies (turning and walking out of the way, real footwork,
+    # data/walk_aside.py) in place of the sliding step-aside copies. On the val split each left the standing ego in
+    # the walker's way more often than the shipped recipe.
     "yield": WindowRecipe(step_aside_rule="yield", face_arrivals=True),
     "keepright": WindowRecipe(step_aside_rule="right", face_arrivals=True),
+    "walkaside": WindowRecipe(walk_aside=True),
 }
 # FWSR reads the ego's latest frames. At run time those are its own output; trained on real ones only, the
 # refiner learned to continue the real motion and at run time amplified its own: walking forward on the val split

@@ -109,7 +109,7 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         # way, stopping at someone, following someone (data/hhi_copies.py)
         from ..data.avoidance import STEP_RULES
         derive = functools.partial(add_hhi_copies, step_rule=STEP_RULES[windows.step_aside_rule],
-                                   face_arrivals=windows.face_arrivals)
+                                   face_arrivals=windows.face_arrivals, walk_aside=windows.walk_aside)
         lib, train_ids, val_ids, pairs_tr, pairs_va = _derive_then_build(lib, train_ids, val_ids, derive,
                                                                          build_hhi_pairs, seed)
         note(f"{len(pairs_tr)} training and {len(pairs_va)} held-out HHI pairs")

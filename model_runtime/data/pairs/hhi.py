@@ -15,8 +15,9 @@ partner, one rule per pair:
                    ahead of where it stops, facing it, so the walk ends at rest in front of and facing them.
     avoid_walker   a walk bent around a real walker crossing or coming head-on (`<name>#avoid<k>`,
                    data/avoidance.py); the partner is that walker, at least AVOID_CLEARANCE away.
-    step_aside     a standing clip shifted off a real walker's line (`<name>#stepaside<k>`, data/avoidance.py);
-                   the partner is that walker, at least AVOID_CLEARANCE away.
+    step_aside     a standing clip shifted off a real walker's line (`<name>#stepaside<k>`, data/avoidance.py),
+                   or turning and walking off it (`<name>#walkaside<k>`, data/walk_aside.py); the partner is
+                   that walker, at least AVOID_CLEARANCE away.
     follow         a walk re-timed behind a real walker on its line (`<name>#follow<k>`, data/following.py);
                    the partner is that walker, never closer than FOLLOW_MIN_GAP (pelvis to pelvis).
     face_arrival   a standing clip turned toward a real walker who walks up to it and stops in front of it
@@ -54,7 +55,8 @@ HHI_KINDS = ("approach_face", "greet", "avoid_blocker", "turn_to_face", "arrive_
              "follow", "face_arrival")
 # the pair kind of each kind of derived copy (library.derived_kind); a mirrored copy takes the real-clip rules
 COPY_KINDS = {"turn": "turn_to_face", "arriveface": "arrive_face", "avoid": "avoid_walker",
-              "stepaside": "step_aside", "follow": "follow", "greeted": "face_arrival"}
+              "stepaside": "step_aside", "follow": "follow", "greeted": "face_arrival",
+              "walkaside": "step_aside"}
 WALKING_PARTNER_KINDS = ("avoid_walker", "step_aside", "follow", "face_arrival")   # the partner is the copy's partner clip
 
 
