@@ -22,13 +22,13 @@ stepaside (`<source>#stepaside<k>`)
     still pass closer than TARGET_CLEARANCE) sideways off the partner's line over about 1 s (smoothstep).
     The step is a synthetic shift of a real clip: the feet slide instead of stepping; the copies teach that
     and where to make room, not the footwork. `StepRule` says where the partner comes from, when the step
-    starts and what the caption says: AHEAD_RULE is the above; YIELD_RULE (`--windows yield`) is the
-    partner from any direction on a line 0-0.3 m off the ego's spot on either side, the ego stepping away
-    from that line (to the partner's right where the line passes within KEEP_RIGHT_WITHIN, one convention
-    instead of a coin toss the module would average into no step at all), starting 1.0-1.5 s before the
-    partner would reach it (a partner that slows down to stop in front has not yet reached that point), and
-    the clip's own caption kept: the module, not the text, must make room for a partner whatever the ego
-    was told to do.
+    starts and what the caption says. AHEAD_RULE is the above (the shipped recipe). YIELD_RULE (`--windows
+    yield`, not shipped): the partner from any direction on a line 0-0.3 m off the ego's spot on either
+    side, the ego stepping away from that line (to the partner's right where the line passes within
+    KEEP_RIGHT_WITHIN: one convention instead of a coin toss the module would average into no step at all),
+    1.5-2.5 s before the partner would reach it at its pace, the clip's own caption kept (the module, not the
+    text, must make room whatever the ego was told to do). KEEP_RIGHT_RULE (`--windows keepright`, not
+    shipped): the same, always to the partner's right, the step widened up to 1.4 m to clear.
 
 Both keep the source's licence and held-out split and its caption: a step-aside copy's is prefixed "a person
 steps aside and"; an avoid copy of a walk-and-turn clip, a straight stretch of it, says "a person walks
@@ -262,7 +262,7 @@ def step_caption(caption: str) -> str:
 def _line_and_step(heading: np.ndarray, rule: StepRule, rng: np.random.Generator) -> tuple[float, np.ndarray]:
     """(signed offset of the partner's line from the ego's spot along the step, unit step direction): the
     line passes opposite the step, or, with `rule.either_side`, on a random side with the step away from it
-    (to the partner's right within KEEP_RIGHT_WITHIN)."""
+    (to the partner's right within `rule.keep_right_within`)."""
     if not rule.either_side:
         away = _left(heading) * (1.0 if rng.random() < 0.5 else -1.0)
         return 0.0, away             # its offset is drawn after the crossing frame (the order AHEAD_RULE's copies keep)

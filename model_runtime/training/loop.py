@@ -80,7 +80,8 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     params = freeze_for(model, stage)
     module = trainable_module(model, stage)
     # a run of a prior or decoder stage that model.pt already holds continues from those weights (a fine-tune): the
-    # file then records what it started from (the adapters start over, below; the meta is updated at the end)
+    # file then records what it started from (the adapters start over, below, unless keep_module; the meta is
+    # updated at the end)
     fine_tune = ("prior", "decoder") + (("hhi", "hsi", "fwsr") if keep_module else ())
     started_from = model.meta.get("stages", {}).get(stage) if stage in fine_tune else None
     if keep_module and st is None and not started_from:
