@@ -48,10 +48,6 @@ TARGET_CLEARANCE = (0.3, 0.4)     # m joint to joint a copy keeps from its walke
 ATTEMPTS = 6
 
 
-def _left(v: np.ndarray) -> np.ndarray:
-    return np.array([-v[1], v[0]])
-
-
 def _stance_and_walk(lib: ClipLibrary, clips: ClipCache, i: int, stand: int, angle: float, rest: list[int],
                      rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, int] | None:
     """(rotations, pelvis, frame the turn starts) of stance `stand` turned by `angle` into a set-off into a short
