@@ -128,6 +128,7 @@ class ModelConfig:
     mim_ff_mult: int = 1         # FFN width of a Meta-Interaction block, times den_dim
     inject_layers: tuple = (1,)          # one injection point keeps the default under 5 ms a frame
     partner_window: int = 10    # partner frames the HHI encoder sees (1 s)
+    partner_line_cues: bool = False   # the HHI encoder also reads where the partner's line passes (OthersEncoder)
     voxel_resolution: int = 32
     voxel_patch: int = 8
     scene_layers: int = 1

@@ -93,7 +93,8 @@ class ReMoGenModel(nn.Module):
         self.denoiser = LatentDenoiser(cfg)
         d, dc = cfg.den_dim, cfg.mim_dim
         self.mims = nn.ModuleDict({
-            "hhi": MetaInteractionModule(OthersEncoder(cfg.partner_window, dc), cfg.inject_layers, d, dc,
+            "hhi": MetaInteractionModule(OthersEncoder(cfg.partner_window, dc, cfg.partner_line_cues),
+                                         cfg.inject_layers, d, dc,
                                          cfg.mim_heads, cfg.rel_omega, cfg.dropout, cfg.mim_ff_mult),
             "hsi": MetaInteractionModule(SceneEncoder(cfg.voxel_resolution, cfg.voxel_patch, dc, cfg.mim_heads,
                                                       cfg.scene_layers, cfg.dropout),

@@ -87,6 +87,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--keep-module", action="store_true",
                     help="an hhi, hsi or fwsr stage continues from the module in OUT/model.pt (a fine-tune) instead "
                          "of starting over")
+    ap.add_argument("--partner-line-cues", action="store_true", default=None,
+                    help="an hhi stage starting over gives its partner encoder the line cues (where the partner's "
+                         "line passes the ego and when; ModelConfig.partner_line_cues)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bars or status lines")
     args = ap.parse_args(argv)
     if args.threads:
@@ -124,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
                                     lr=args.lr, seed=args.seed, minutes=left, progress=progress,
                                     mirror=not args.no_mirror, device=device, workers=workers,
                                     snapshot_every=args.snapshot_every, windows=args.windows,
-                                    keep_module=args.keep_module))
+                                    keep_module=args.keep_module, partner_line_cues=args.partner_line_cues))
             if not runs[-1].finished:
                 break
     except RemogenError as exc:

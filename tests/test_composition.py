@@ -106,3 +106,40 @@ def test_zero_initialised_module_learns(tiny_model):
     run().pow(2).mean().backward()
     opt.step()
     assert not torch.allclose(run().detach(), before)
+
+
+def test_line_cues_say_where_a_walker_passes_and_when():
+    from model_runtime.nets.interaction import MAX_ARRIVAL_S, line_cues
+    w = 10
+    x = -3.0 + 0.1 * torch.arange(w, dtype=torch.float32)        # 1 m/s along +x ...
+    partner = torch.zeros(1, w, 22, 3)
+    partner[0, :, :, 0] = x[:, None]
+    partner[0, :, :, 1] = 0.3                                     # ... on a line 0.3 m to the ego's left
+    present = torch.ones(1, w, dtype=torch.bool)
+    cues = line_cues(partner, present)[0]
+    assert torch.allclose(cues[1:, 0], torch.full((w - 1,), 0.3), atol=1e-5)   # the ego is on the walker's right
+    assert torch.allclose(cues[1:, 1] * MAX_ARRIVAL_S, -x[1:], atol=1e-4)      # seconds to the closest point
+    assert torch.allclose(cues[1:, 2], torch.ones(w - 1), atol=1e-4)           # m/s
+    assert torch.equal(cues[0], torch.zeros(3))                   # no velocity on the first frame
+    mirrored = partner.clone()
+    mirrored[..., 1] = -0.3
+    assert torch.allclose(line_cues(mirrored, present)[0, 1:, 0], torch.full((w - 1,), -0.3), atol=1e-5)
+    gaps = present.clone()
+    gaps[0, 4] = False
+    assert torch.equal(line_cues(partner, gaps)[0, 4:6], torch.zeros(2, 3))    # absent frames and the one after
+
+
+def test_a_model_with_line_cues_encodes_partners_and_old_files_load_without_them(tmp_path):
+    import dataclasses
+    from model_runtime import load_model
+    from model_runtime.checkpoint import save_model
+    from model_runtime.model import ReMoGenModel
+    plain = load_model(config="tiny")
+    assert not plain.cfg.partner_line_cues                        # the default, and what older files hold
+    cued = ReMoGenModel(dataclasses.replace(plain.cfg, partner_line_cues=True))
+    assert cued.mims["hhi"].encoder.inp.in_channels == plain.mims["hhi"].encoder.inp.in_channels + 3
+    partner = torch.randn(2, plain.cfg.partner_window, 22, 3)
+    present = torch.ones(2, plain.cfg.partner_window, dtype=torch.bool)
+    assert cued.mims["hhi"].encoder(partner, present).shape == plain.mims["hhi"].encoder(partner, present).shape
+    save_model(cued, tmp_path / "cued.pt")
+    assert load_model(tmp_path / "cued.pt", warn_untrained=False).cfg.partner_line_cues

@@ -107,6 +107,22 @@ def test_an_adapter_stage_starts_over_unless_told_to_keep_its_module(tmp_path, l
     assert not all(torch.allclose(a, b, atol=1e-5) for a, b in fresh)    # started over
 
 
+def test_an_hhi_stage_can_start_over_with_the_partner_line_cues(tmp_path, lib):
+    from model_runtime.errors import RemogenError
+    out = tmp_path / "run"
+    for stage in ("vae", "prior"):
+        train_stage(stage, out, lib, config="tiny", steps=1, batch=8, val_every=1, val_batches=1, progress=False)
+    before = load_model(out / "model.pt", warn_untrained=False)
+    with pytest.raises(RemogenError, match="cannot be kept"):
+        train_stage("hhi", out, lib, config="tiny", steps=1, progress=False, keep_module=True, partner_line_cues=True)
+    train_stage("hhi", out, lib, config="tiny", steps=2, batch=8, val_every=2, val_batches=1, progress=False,
+                partner_line_cues=True)
+    after = load_model(out / "model.pt", warn_untrained=False)
+    assert after.cfg.partner_line_cues and not before.cfg.partner_line_cues
+    for a, b in zip(before.denoiser.parameters(), after.denoiser.parameters()):
+        assert torch.equal(a, b)                                   # the prior is the one it started from
+
+
 def test_later_stage_without_earlier_says_so(tmp_path, lib):
     from model_runtime.errors import RemogenError
     with pytest.raises(RemogenError, match="train the stages before"):

@@ -3,6 +3,8 @@ minutes and the EMA model at the end (and, when asked, every N steps, so a check
 behaviour suite's val split); under torchrun the ranks train data-parallel and stop together."""
 from __future__ import annotations
 
+import dataclasses
+
 import gc
 import json
 import os
@@ -38,7 +40,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                 ckpt_minutes: float = 3.0, val_every: int = 250, val_batches: int = 4,
                 progress: bool = True, mirror: bool = True, device: str | torch.device = "cpu",
                 workers: int = 0, snapshot_every: int = 0, windows: str = "captured",
-                keep_module: bool = False) -> StageRun:
+                keep_module: bool = False, partner_line_cues: bool | None = None) -> StageRun:
     """Run (or resume) one stage: what was written and how far it got.
 
     device: where the model trains ("cpu", "cuda", "cuda:1"); the checkpoint files hold CPU tensors either way.
@@ -47,6 +49,8 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     windows: the name of the training windows' recipe (recipe.WINDOW_RECIPES), recorded with the stage.
     keep_module: an adapter stage (hhi, hsi, fwsr) started afresh continues from model.pt's module (a fine-tune)
     instead of starting over.
+    partner_line_cues: an hhi stage started afresh builds its partner encoder with (True) or without (False) the
+    line cues (ModelConfig.partner_line_cues); None keeps model.pt's setting.
     """
     device = torch.device(device)
     if stage not in STAGES:
@@ -77,6 +81,11 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                                f"({' -> '.join(STAGES)})")
         note(f"starting from {model_path}")
         model = load_model(model_path, warn_untrained=False)   # its later stages are untrained by design
+        if stage == "hhi" and partner_line_cues is not None and partner_line_cues != model.cfg.partner_line_cues:
+            if keep_module:
+                raise RemogenError("--partner-line-cues changes the HHI module's inputs, so it cannot be kept: "
+                                   "leave out --keep-module")
+            model = with_partner_line_cues(model, partner_line_cues)
     params = freeze_for(model, stage)
     module = trainable_module(model, stage)
     # a run of a prior or decoder stage that model.pt already holds continues from those weights (a fine-tune): the
@@ -251,3 +260,14 @@ def past_deadline(deadline: float | None, world: int) -> bool:
             done = done.cuda()
         dist.broadcast(done, 0)
     return bool(done.item())
+
+
+def with_partner_line_cues(model: ReMoGenModel, on: bool) -> ReMoGenModel:
+    """The same model with its HHI partner encoder built with or without the line cues: every weight whose shape
+    stays is copied (the HHI module starts over anyway)."""
+    cued = ReMoGenModel(dataclasses.replace(model.cfg, partner_line_cues=on))
+    ours = cued.state_dict()
+    cued.load_state_dict({k: v for k, v in model.state_dict().items() if k in ours and ours[k].shape == v.shape},
+                         strict=False)
+    cued.meta = dict(model.meta)
+    return cued
