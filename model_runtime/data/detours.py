@@ -24,9 +24,9 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..skeleton import JOINT_INDEX, forward_kinematics, quat_slerp, quat_to_matrix
+from ..skeleton import JOINT_INDEX, quat_slerp
 from .library import DERIVED, ClipLibrary, is_derived
-from .pairs import FPS, STANDING_RANGE, ClipCache, facing_xy, is_gesture
+from .pairs import FPS, STANDING_RANGE, ClipCache, facing_xy, is_gesture, pose_joints
 from .turns import pivot_turn, smoothstep, turn_roots
 
 WALK_SPEED = (0.7, 2.0)              # m/s mean pelvis speed of a source walk
@@ -126,8 +126,7 @@ def arrive(walk_rot: np.ndarray, walk_pel: np.ndarray, stand_rot: np.ndarray, st
            stand_joints0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A walk slowed to rest, then cross-faded into a standing clip placed where and as the walk stopped."""
     rot, pel = slow_to_rest(walk_rot, walk_pel)
-    j_end = forward_kinematics(quat_to_matrix(torch.from_numpy(rot[-1:].astype(np.float64))),
-                               torch.from_numpy(pel[-1:].astype(np.float64)))[0][0].numpy()
+    j_end = pose_joints(rot[-1:], pel[-1:])[0]
     s_rot, s_pel = place_stand(stand_rot, stand_pel, stand_joints0, pel[-1, :2].astype(np.float64),
                                facing_xy(j_end[None])[0])
     b_rot, b_pel = cross_fade(np.repeat(rot[-1:], BLEND_FRAMES, 0), np.repeat(pel[-1:], BLEND_FRAMES, 0),
@@ -175,6 +174,19 @@ def come_to_rest(lib: ClipLibrary, clips: ClipCache, rotations: np.ndarray, pelv
     s0 = int(rng.integers(0, lib.frames(s) - sn + 1))
     return arrive(rotations, pelvis, lib.rotations[sa + s0:sa + s0 + sn], lib.pelvis[sa + s0:sa + s0 + sn],
                   clips.joints(s)[s0])
+
+
+def walk_to_rest(lib: ClipLibrary, clips: ClipCache, i: int, walk: int, stands: list[int], rng: np.random.Generator
+                 ) -> tuple[np.ndarray, np.ndarray, int, int] | None:
+    """(rotations, pelvis, start, exclusive end) of a random straight stretch of clip i about `walk` frames long
+    (straight_walk) slowed to rest in a clip of `stands` (come_to_rest); None when the clip has no such stretch.
+    The walk's own frames are start..end of the clip; it comes to rest SLOW_IN - 1 frames after their last one."""
+    span = straight_walk(clips, i, walk, rng)
+    if span is None:
+        return None
+    a, (start, stop) = int(lib.offsets[i]), span
+    rot, pel = come_to_rest(lib, clips, lib.rotations[a + start:a + stop], lib.pelvis[a + start:a + stop], stands, rng)
+    return rot, pel, start, stop
 
 
 def add_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[ClipLibrary, list[int]]:

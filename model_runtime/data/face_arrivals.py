@@ -21,14 +21,12 @@ Only the "yield" and "keepright" window recipes make these copies; the shipped r
 from __future__ import annotations
 
 import numpy as np
-import torch
 
-from ..skeleton import forward_kinematics, quat_to_matrix
-from .detours import BLEND_FRAMES, SLOW_IN, STAND_FRAMES, come_to_rest, straight_walk
+from .detours import BLEND_FRAMES, SLOW_IN, STAND_FRAMES, walk_to_rest
 from .geometry import normalized
 from .library import ClipLibrary
 from .new_clips import NewClip, copy_name, new_clip, partner_clip_name
-from .pairs import FPS, ClipCache, facing_xy
+from .pairs import FPS, ClipCache, facing_xy, pose_joints
 from .stretches import WalkPool, clearance, rotate_xy, yaw_of
 from .turns import pivot_turn, smoothstep, turn_duration, turn_profile
 
@@ -45,24 +43,15 @@ COPIES = 1                           # per calm standing clip
 ATTEMPTS = 6
 
 
-def fk_joints(rotations: np.ndarray, pelvis: np.ndarray) -> np.ndarray:
-    """(T, 22, 3) world joints of a pose sequence (rotations (T, 22, 4) w-first, pelvis (T, 3))."""
-    rot = quat_to_matrix(torch.from_numpy(rotations.astype(np.float64)))
-    return forward_kinematics(rot, torch.from_numpy(pelvis.astype(np.float64)))[0].numpy()
-
-
 def _arriving_partner(lib: ClipLibrary, clips: ClipCache, walks: WalkPool, stands: list[int], not_source: int,
                       rng: np.random.Generator) -> tuple[int, np.ndarray, np.ndarray, int] | None:
     """(walk clip, rotations, pelvis, the frame it comes to rest) of a real straight walk slowed to rest, or None."""
     walk = int(rng.integers(WALK_FRAMES[0], WALK_FRAMES[1] + 1))
     src = walks.pick(rng, walk + 2, not_source)
-    got = straight_walk(clips, src, walk, rng) if src is not None else None
+    got = walk_to_rest(lib, clips, src, walk, stands, rng) if src is not None else None
     if got is None:
         return None
-    a = int(lib.offsets[src])
-    start, stop = got
-    rot, pel = come_to_rest(lib, clips, lib.rotations[a + start:a + stop], lib.pelvis[a + start:a + stop], stands,
-                            rng)
+    rot, pel, start, stop = got
     return src, rot, pel, stop - start + SLOW_IN - 1     # the last frame of the slowed walk (detours.slow_to_rest)
 
 
@@ -91,7 +80,7 @@ def _greeted_one(lib: ClipLibrary, clips: ClipCache, s: int, walks: WalkPool, st
     at = spot + float(rng.uniform(*ARRIVE_DISTANCE)) * toward
     p_pel = p_pel.copy()
     p_pel[:, :2] = (p_pel[:, :2] + (at - p_pel[rest, :2])).astype(p_pel.dtype)
-    p_joints = fk_joints(p_rot, p_pel)
+    p_joints = pose_joints(p_rot, p_pel)
     dist = np.linalg.norm(p_joints[:, 0, :2] - spot, axis=1)
     # step off its line (to its right) while it still comes on at its pace, as a step-aside copy does
     pace = float(np.linalg.norm(p_pel[5, :2] - p_pel[0, :2])) * FPS / 5.0
@@ -111,7 +100,7 @@ def _greeted_one(lib: ClipLibrary, clips: ClipCache, s: int, walks: WalkPool, st
         e_rot, e_pel = pivot_turn(e_rot, e_pel, turn_profile(frames, turn_from, angle))
     e_pel = e_pel.copy()
     e_pel[:, :2] = (e_pel[:, :2] + shift).astype(e_pel.dtype)
-    if clearance(fk_joints(e_rot, e_pel).astype(np.float32), p_joints.astype(np.float32)) < MIN_CLEARANCE:
+    if clearance(pose_joints(e_rot, e_pel).astype(np.float32), p_joints.astype(np.float32)) < MIN_CLEARANCE:
         return None
     return e_rot, e_pel, src, p_rot, p_pel
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .detours import BLEND_FRAMES, STAND_FRAMES, WALK_FRAMES, come_to_rest, straight_walk
+from .detours import BLEND_FRAMES, STAND_FRAMES, WALK_FRAMES, walk_to_rest
 from .library import ClipLibrary
 from .new_clips import NewClip, copy_name, extend_library, new_clip
 from .pairs import ClipCache, is_gesture
@@ -50,6 +50,26 @@ def turned_stance(rotations: np.ndarray, pelvis: np.ndarray, onset: int, angle: 
     return pivot_turn(rotations, pelvis, yaw)
 
 
+def turn_then_walk(lib: ClipLibrary, clips: ClipCache, i: int, angle: float, walk: int, stances: list[int],
+                   rests: list[int], onset_frames: tuple[int, int], rng: np.random.Generator
+                   ) -> tuple[np.ndarray, np.ndarray, int, int] | None:
+    """(rotations, pelvis, stance clip, frame the turn starts) of a standing stretch
+    of a clip of `stances`, turned away by `angle` and turning back after `onset_frames` frames, setting off into a
+    straight stretch of about `walk` frames of walk i, slowed to rest in a clip of `rests`; None when walk i has no
+    such stretch. Clips of `stances` must hold the longest stance (onset, turn, settle and cross-fade)."""
+    got = walk_to_rest(lib, clips, i, walk, rests, rng)
+    if got is None:
+        return None
+    m_rot, m_pel, start, _ = got
+    s = stances[int(rng.integers(len(stances)))]
+    onset = int(rng.integers(onset_frames[0], onset_frames[1] + 1))
+    sn = onset + turn_frames(angle) + int(rng.integers(SETTLE_FRAMES[0], SETTLE_FRAMES[1] + 1)) + BLEND_FRAMES
+    sa, s0 = int(lib.offsets[s]), int(rng.integers(0, lib.frames(s) - sn + 1))
+    s_rot, s_pel = turned_stance(lib.rotations[sa + s0:sa + s0 + sn], lib.pelvis[sa + s0:sa + s0 + sn], onset, angle)
+    rot, pel = set_off(s_rot, s_pel, clips.joints(s)[s0 + sn - 1], m_rot, m_pel, clips.joints(i)[start])
+    return rot, pel, s, onset
+
+
 def add_turn_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[ClipLibrary, list[int]]:
     """A new library: `lib` plus COPIES turn-then-walk arrivals of every real forward walk of `clip_ids` with a
     long enough straight stretch, their standing parts taken from calm standing clips of the same split.
@@ -63,23 +83,11 @@ def add_turn_arrivals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> t
         pool = pools[lib.is_held_out(i)]
         if not pool:
             continue
-        a = int(lib.offsets[i])
         rng = np.random.default_rng([seed, int(i), 31])
         for k in range(COPIES):
             angle = float(rng.uniform(*TURN_RANGE)) * (1.0 if rng.random() < 0.5 else -1.0)
-            span = straight_walk(clips, i, int(rng.integers(WALK_FRAMES[0], WALK_FRAMES[1] + 1)), rng)
-            if span is None:
-                continue
-            start, stop = span
-            m_rot, m_pel = come_to_rest(lib, clips, lib.rotations[a + start:a + stop], lib.pelvis[a + start:a + stop],
-                                        pool, rng)
-            # the stance before it: turned away by `angle`, turning back, then setting off into the walk
-            s = pool[int(rng.integers(len(pool)))]
-            onset = int(rng.integers(ONSET_FRAMES[0], ONSET_FRAMES[1] + 1))
-            sn = onset + turn_frames(angle) + int(rng.integers(SETTLE_FRAMES[0], SETTLE_FRAMES[1] + 1)) + BLEND_FRAMES
-            sa, s0 = int(lib.offsets[s]), int(rng.integers(0, lib.frames(s) - sn + 1))
-            s_rot, s_pel = turned_stance(lib.rotations[sa + s0:sa + s0 + sn], lib.pelvis[sa + s0:sa + s0 + sn],
-                                         onset, angle)
-            rot, pel = set_off(s_rot, s_pel, clips.joints(s)[s0 + sn - 1], m_rot, m_pel, clips.joints(i)[start])
-            copies.append(new_clip(lib, i, copy_name(lib, i, KIND, k), lib.captions[i], rot, pel))
+            got = turn_then_walk(lib, clips, i, angle, int(rng.integers(WALK_FRAMES[0], WALK_FRAMES[1] + 1)), pool,
+                                 pool, ONSET_FRAMES, rng)
+            if got is not None:
+                copies.append(new_clip(lib, i, copy_name(lib, i, KIND, k), lib.captions[i], got[0], got[1]))
     return extend_library(lib, copies)

@@ -26,15 +26,13 @@ from __future__ import annotations
 import numpy as np
 
 from .avoidance import KEEP_RIGHT_WITHIN
-from .detours import BLEND_FRAMES, STAND_FRAMES, come_to_rest, straight_walk
-from .face_arrivals import fk_joints
+from .detours import BLEND_FRAMES, STAND_FRAMES
 from .geometry import normalized
 from .library import ClipLibrary
 from .new_clips import NewClip, copy_name, new_clip, partner_clip_name
-from .pairs import FPS, ClipCache
-from .startups import set_off
+from .pairs import FPS, ClipCache, pose_joints
 from .stretches import Stretch, WalkPool, calm_standing, clearance, moved, partner_walk, rotate_xy, yaw_of
-from .turn_arrivals import SETTLE_FRAMES, turn_frames, turned_stance
+from .turn_arrivals import SETTLE_FRAMES, turn_frames, turn_then_walk
 
 KIND = "walkaside"
 COPIES = 2                        # per source walk
@@ -46,27 +44,6 @@ ESCAPE_SPREAD = np.radians(60.0)  # the way out is within this of square to the 
 AFTER_PASS = 10                   # frames kept after the walker passes
 TARGET_CLEARANCE = (0.3, 0.4)     # m joint to joint a copy keeps from its walker (the pair builder checks 0.3)
 ATTEMPTS = 6
-
-
-def _stance_and_walk(lib: ClipLibrary, clips: ClipCache, i: int, stand: int, angle: float, rest: list[int],
-                     rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, int] | None:
-    """(rotations, pelvis, frame the turn starts) of stance `stand` turned by `angle` into a set-off into a short
-    straight stretch of walk i, slowed to rest in a clip of `rest`; None when the walk has no such stretch."""
-    span = straight_walk(clips, i, int(rng.integers(WALK_FRAMES[0], WALK_FRAMES[1] + 1)), rng)
-    if span is None:
-        return None
-    a = int(lib.offsets[i])
-    start, stop = span
-    m_rot, m_pel = come_to_rest(lib, clips, lib.rotations[a + start:a + stop], lib.pelvis[a + start:a + stop], rest,
-                                rng)
-    onset = int(rng.integers(ONSET_FRAMES[0], ONSET_FRAMES[1] + 1))
-    sn = onset + turn_frames(angle) + int(rng.integers(SETTLE_FRAMES[0], SETTLE_FRAMES[1] + 1)) + BLEND_FRAMES
-    if lib.frames(stand) < sn:
-        return None
-    sa, s0 = int(lib.offsets[stand]), int(rng.integers(0, lib.frames(stand) - sn + 1))
-    s_rot, s_pel = turned_stance(lib.rotations[sa + s0:sa + s0 + sn], lib.pelvis[sa + s0:sa + s0 + sn], onset, angle)
-    rot, pel = set_off(s_rot, s_pel, clips.joints(stand)[s0 + sn - 1], m_rot, m_pel, clips.joints(i)[start])
-    return rot, pel, onset
 
 
 def _way_out(rng: np.random.Generator) -> tuple[float, float, float, bool]:
@@ -84,13 +61,13 @@ def _way_out(rng: np.random.Generator) -> tuple[float, float, float, bool]:
 def _walk_aside_one(lib: ClipLibrary, clips: ClipCache, i: int, stands: list[int], walkers: WalkPool,
                     rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, int, Stretch] | None:
     """(ego rotations, ego pelvis, stance clip, placed walker) for walk i, or None."""
-    stand = stands[int(rng.integers(len(stands)))]
     heading, out, miss, on_right = _way_out(rng)
     angle = float(np.angle(np.exp(1j * out)))                # the turn from the stance's facing to the way out
-    got = _stance_and_walk(lib, clips, i, stand, angle, stands, rng)
+    got = turn_then_walk(lib, clips, i, angle, int(rng.integers(WALK_FRAMES[0], WALK_FRAMES[1] + 1)), stands, stands,
+                         ONSET_FRAMES, rng)
     if got is None:
         return None
-    rot, pel, onset = got
+    rot, pel, stand, onset = got
     spot = pel[0, :2].astype(np.float64)
     walked = normalized(pel[-1, :2].astype(np.float64) - pel[onset + turn_frames(angle), :2])   # world way out
     face0 = rotate_xy(walked, -angle)
@@ -105,7 +82,7 @@ def _walk_aside_one(lib: ClipLibrary, clips: ClipCache, i: int, stands: list[int
     if walker is None:
         return None
     walker = moved(walker, yaw_of(walk_dir) - yaw_of(walker.heading), tc, spot - miss * side)
-    joints = fk_joints(rot, pel).astype(np.float32)
+    joints = pose_joints(rot, pel).astype(np.float32)
     if clearance(joints, walker.joints) < float(rng.uniform(*TARGET_CLEARANCE)):
         return None
     return rot, pel, stand, walker
@@ -114,8 +91,7 @@ def _walk_aside_one(lib: ClipLibrary, clips: ClipCache, i: int, stands: list[int
 def walk_aside_copies(lib: ClipLibrary, clips: ClipCache, egos: WalkPool, walkers: dict[bool, WalkPool],
                       stands: dict[bool, list[int]], seed: int) -> list[NewClip]:
     """COPIES walk-aside copies (and their walker clips) of each walk of `egos`; stances and rests come from
-    `stands` (calm standing clips at least STAND_FRAMES[1] + BLEND_FRAMES long) and walkers from
-    `walkers`, each on the walk's side of the split."""
+    `stands` (walk_aside_stands) and walkers from `walkers`, each on the walk's side of the split."""
     out: list[NewClip] = []
     for i in egos.ids.tolist():
         side = lib.is_held_out(i)
@@ -136,6 +112,8 @@ def walk_aside_copies(lib: ClipLibrary, clips: ClipCache, egos: WalkPool, walker
 
 
 def walk_aside_stands(lib: ClipLibrary, clips: ClipCache, ids: list[int]) -> dict[bool, list[int]]:
-    """The calm standing clips among `ids` that a copy's stance and rest can come from, by split."""
-    calm = calm_standing(lib, clips, ids, STAND_FRAMES[1] + BLEND_FRAMES)
+    """The calm standing clips among `ids` that a copy's stance and rest can come from, by split: long enough for
+    the longest stance (turn_then_walk) and for a rest (detours.come_to_rest)."""
+    longest_stance = ONSET_FRAMES[1] + turn_frames(np.pi) + SETTLE_FRAMES[1] + BLEND_FRAMES
+    calm = calm_standing(lib, clips, ids, max(longest_stance, STAND_FRAMES[1] + BLEND_FRAMES))
     return {side: [s for s in calm if lib.is_held_out(s) == side] for side in (False, True)}

@@ -22,13 +22,13 @@ because those datasets are not part of the open data.
 from __future__ import annotations
 
 from .clips import (FPS, MOVING_DISTANCE, STANDING_RANGE, ClipCache, PathInfo, analyse_path, clip_joints,
-                    facing_xy, is_gesture)
+                    facing_xy, is_gesture, pose_joints)
 from .goals import GOAL_LEAD, GOAL_LEAD_MAX, STOPPED_SPEED, hsi_goal
 from .hhi import HHI_KINDS, MIN_CLEARANCE, HHIPair, build_hhi_pairs
 from .hsi import HSI_KINDS, SCENE_CHECK_HEIGHT, VOXEL_SIZE, HSIScene, build_hsi_scenes, scene_collisions
 from .placement import min_clearance, place_standing
 
 __all__ = ["FPS", "MOVING_DISTANCE", "STANDING_RANGE", "ClipCache", "PathInfo", "analyse_path", "clip_joints",
-           "facing_xy", "is_gesture", "GOAL_LEAD", "GOAL_LEAD_MAX", "STOPPED_SPEED", "hsi_goal", "HHI_KINDS",
+           "facing_xy", "is_gesture", "pose_joints", "GOAL_LEAD", "GOAL_LEAD_MAX", "STOPPED_SPEED", "hsi_goal", "HHI_KINDS",
            "MIN_CLEARANCE", "HHIPair", "build_hhi_pairs", "HSI_KINDS", "SCENE_CHECK_HEIGHT", "VOXEL_SIZE",
            "HSIScene", "build_hsi_scenes", "scene_collisions", "min_clearance", "place_standing"]

@@ -26,6 +26,13 @@ def clip_joints(lib: ClipLibrary, i: int) -> np.ndarray:
     return forward_kinematics(rot, pel)[0].numpy().astype(np.float32)
 
 
+def pose_joints(rotations: np.ndarray, pelvis: np.ndarray) -> np.ndarray:
+    """(T, 22, 3) float64 world joints of a pose sequence that is not a library clip (rotations (T, 22, 4)
+    w-first, pelvis (T, 3))."""
+    rot = quat_to_matrix(torch.from_numpy(rotations.astype(np.float64)))
+    return forward_kinematics(rot, torch.from_numpy(pelvis.astype(np.float64)))[0].numpy()
+
+
 def facing_xy(joints: np.ndarray) -> np.ndarray:
     """(..., 22, 3) -> (..., 2) unit horizontal facing from the hips (+Z x (right hip - left hip))."""
     across = joints[..., RIGHT_HIP, :2] - joints[..., LEFT_HIP, :2]
