@@ -112,3 +112,24 @@ def test_caption_balance_evens_out_caption_heads_by_their_frames():
     # head shares go as frame shares to the power 1/2: walking 100 frames, kicking 25 -> 2 : 1
     assert (share[0] + share[1]) / share[2] == pytest.approx(2.0)
     assert f.mean() == pytest.approx(1.0) and f[0] == f[1]
+
+
+def test_head_shares_set_the_share_of_draws_of_the_named_caption_heads():
+    from model_runtime.training.samples import caption_head, with_head_shares
+    clips = [("a", "a person walks forward, tired", "cmu", rigid_clip(np.zeros((90, 2)), 0.0)),
+             ("b", "a person kicks a ball", "cmu", rigid_clip(np.zeros((25, 2)), 0.0)),
+             ("c", "a person kicks, angry", "bandai", rigid_clip(np.zeros((25, 2)), 0.0)),
+             ("d", "a person waves", "bandai", rigid_clip(np.zeros((45, 2)), 0.0))]
+    lib = library_of(clips)
+    heads = [caption_head(c) for c in lib.captions]
+    w = with_head_shares(np.array([90.0, 25.0, 25.0, 45.0]), heads, (("a person kicks", 0.3),))
+    assert w.sum() == pytest.approx(185.0)                        # the same total
+    assert (w[1] + w[2]) / w.sum() == pytest.approx(0.3)           # kicks: 30 % of the draws
+    assert w[1] == pytest.approx(w[2]) and w[0] / w[3] == pytest.approx(2.0)   # proportions kept within each side
+    assert np.array_equal(with_head_shares(np.array([90.0, 25.0, 25.0, 45.0]), heads, ()), [90, 25, 25, 45])
+    assert np.array_equal(with_head_shares(np.array([1.0, 2.0, 3.0, 4.0]), heads, (("a person jumps", 0.5),)),
+                          [1, 2, 3, 4])                            # no clip of that head: nothing changes
+    model = load_model(config="tiny")
+    s = SegmentSampler(lib, [0, 1, 2, 3], model.cfg, model.stats, seed=0, head_shares=(("a person kicks", 0.3),))
+    picks = [lib.captions[s.items[k][0]] for k in torch.multinomial(s.weights, 4000, True).tolist()]
+    assert sum("kicks" in c for c in picks) / 4000 == pytest.approx(0.3, abs=0.03)

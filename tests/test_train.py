@@ -443,6 +443,22 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
     record = load_model(out / "model.pt", warn_untrained=False).meta["stages"]["prior"]["windows"]
     assert record == {"name": "balanced", "still_share": 0.75, "slow_walk_share": 0.5, "caption_balance": 0.5,
                       "startup_stages": ["prior"], "reversal_stages": [], "turn_arrival_stages": [],
-                      "step_aside_rule": "ahead", "face_arrivals": False, "walk_aside": False}
+                      "step_aside_rule": "ahead", "face_arrivals": False, "walk_aside": False,
+                      "head_shares": [], "head_share_stages": [], "decoder_shown_weight": 1.0}
     with pytest.raises(RemogenError, match="unknown window recipe 'odd'; use one of captured, balanced, reversed"):
         train_stage("prior", out, lib, config="tiny", steps=1, progress=False, windows="odd")
+
+
+def test_the_kicks_recipe_trains_the_decoder_on_reconstruction_alone_with_kicks_drawn_more_often(lib):
+    from model_runtime.training.recipe import KICK_HEAD_SHARES, WINDOW_RECIPES
+    from model_runtime.training.stages import StageLoss
+    kicks = WINDOW_RECIPES["kicks"]
+    assert "decoder" in kicks.head_share_stages and kicks.head_shares == KICK_HEAD_SHARES
+    assert kicks.decoder_shown_weight == 0.0
+    model = load_model(config="tiny")
+    b = SegmentSampler(lib, lib.split("train"), model.cfg, model.stats, seed=0).sample(4)
+    plain = StageLoss(model, "decoder", shown_weight=0.0)(b, torch.Generator().manual_seed(1))
+    shown = StageLoss(model, "decoder", shown_weight=1.0)(b, torch.Generator().manual_seed(1))
+    assert float(plain[0].detach()) == pytest.approx(plain[1]["rec"], rel=1e-6)     # the VAE's own reconstruction loss
+    assert float(shown[0].detach()) > shown[1]["rec"] > 0          # plus the error of the motion as shown
+

@@ -57,6 +57,28 @@ def caption_balance(lib: ClipLibrary, clips: list[int], power: float) -> np.ndar
     return f / f.mean()
 
 
+def with_head_shares(weights: np.ndarray, heads: list[str], shares: tuple[tuple[str, float], ...]) -> np.ndarray:
+    """Draw weights (one per clip, with its caption head) rescaled so that the clips whose head starts with a prefix
+    of `shares` make that share of the draws (the first prefix that matches; the others keep their proportions in
+    what is left). A prefix no clip has changes nothing. recipe.KICK_HEAD_SHARES says why."""
+    w = np.asarray(weights, np.float64).copy()
+    total = w.sum()
+    groups = [np.array([h.startswith(prefix) for h in heads]) for prefix, _ in shares]
+    taken = np.zeros(len(w), bool)
+    kept = 1.0
+    for (prefix, share), g in zip(shares, groups):
+        g &= ~taken
+        if not g.any() or w[g].sum() == 0:
+            continue
+        w[g] *= share * total / w[g].sum()
+        taken |= g
+        kept -= share
+    rest = ~taken
+    if taken.any() and rest.any() and w[rest].sum() > 0:
+        w[rest] *= kept * total / w[rest].sum()
+    return w
+
+
 def window_speed(window: torch.Tensor) -> float:
     """m/s of a window's pelvis from its first to its last frame (floor plane)."""
     travel = float(torch.linalg.vector_norm(window[-1, ROOT_T][:2] - window[0, ROOT_T][:2]))
@@ -110,7 +132,8 @@ class SegmentSampler:
     def __init__(self, lib: ClipLibrary, clip_ids: list[int], cfg: ModelConfig, stats: FeatureStats,
                  seed: int = 0, pairs: list | None = None, scenes: list | None = None,
                  still_share: float = STILL_SHARE, slow_walk_share: float = SLOW_WALK_SHARE,
-                 caption_balance_power: float = 0.0) -> None:
+                 caption_balance_power: float = 0.0,
+                 head_shares: tuple[tuple[str, float], ...] = ()) -> None:
         self.lib, self.cfg, self.stats = lib, cfg, stats
         self.still_share, self.slow_walk_share = still_share, slow_walk_share
         self.pairs, self.scenes = pairs, scenes
@@ -131,6 +154,7 @@ class SegmentSampler:
             weights *= np.array([SCENE_KIND_WEIGHT.get(scenes[k].kind, 1.0) for _, k in self.items])
         else:
             weights *= caption_balance(lib, [i for i, _ in self.items], caption_balance_power)
+            weights = with_head_shares(weights, [caption_head(lib.captions[i]) for i, _ in self.items], head_shares)
         self.weights = torch.from_numpy(weights / weights.sum())
         self.gen = torch.Generator().manual_seed(seed)
         self._partner_cache: dict[int, torch.Tensor] = {}

@@ -134,9 +134,10 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         note(f"{len(scenes_tr)} training and {len(scenes_va)} held-out HSI scenes")
     # the samplers keep a CPU copy of the statistics: the model itself may move to a GPU after this
     stats = copy.deepcopy(model.stats).cpu()
-    # caption balance for the prior's training windows only: held-out losses stay comparable across recipes
+    # caption balance and head shares for the training windows only: held-out losses stay comparable across recipes
     tr = SegmentSampler(lib, train_ids, model.cfg, stats, seed=seed * 1000 + rank, pairs=pairs_tr,
                         scenes=scenes_tr, caption_balance_power=windows.caption_balance if stage == "prior" else 0.0,
+                        head_shares=windows.head_shares if stage in windows.head_share_stages else (),
                         still_share=windows.still_share, slow_walk_share=windows.slow_walk_share)
     if pairs_va == [] or scenes_va == []:
         note(f"note: no held-out clip fits the {stage} stage's rules: it trains without a held-out loss")

@@ -75,9 +75,10 @@ def freeze_for(model: ReMoGenModel, stage: str) -> list[nn.Parameter]:
 class StageLoss(nn.Module):
     """forward(batch) -> (loss, parts); wrapping this module in DDP gives data-parallel training."""
 
-    def __init__(self, model: ReMoGenModel, stage: str) -> None:
+    def __init__(self, model: ReMoGenModel, stage: str, shown_weight: float = DECODER_SHOWN_WEIGHT) -> None:
         super().__init__()
         self.model, self.stage = model, stage
+        self.shown_weight = shown_weight   # the decoder stage's weight of the motion as shown (WindowRecipe)
 
     def forward(self, batch: Batch, gen: torch.Generator) -> tuple[torch.Tensor, dict[str, float]]:
         return getattr(self, f"_{self.stage if self.stage in ('vae', 'fwsr', 'decoder') else 'denoise'}")(batch, gen)
@@ -101,7 +102,7 @@ class StageLoss(nn.Module):
         w = torch.ones_like(shown)
         w[:len(DECODER_FIRST_FRAMES)] = torch.tensor(DECODER_FIRST_FRAMES, dtype=w.dtype)
         shown_loss = (shown * w / w.mean()).mean()
-        return rec + DECODER_SHOWN_WEIGHT * shown_loss, {"rec": float(rec.detach()),
+        return rec + self.shown_weight * shown_loss, {"rec": float(rec.detach()),
                                                         "shown_m": float(shown.mean().detach()),
                                                         "first_m": float(shown[0].detach())}
 
