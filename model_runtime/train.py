@@ -69,7 +69,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--windows", default="captured", choices=sorted(WINDOW_RECIPES),
                     help="how training windows are drawn and captioned: captured (as the data holds them) or "
                          "balanced (slow-walk and still captions, caption balance, start-up copies for the prior: "
-                         "what the shipped prior's last steps trained on)")
+                         "what the shipped prior's last steps trained on); kicks: the balanced windows with kicks at 6 %% "
+                         "of the prior's and the decoder stage's windows, the decoder on reconstruction alone; the "
+                         "others: training/recipe.py WINDOW_RECIPES")
     ap.add_argument("--steps", type=int, default=None, help="steps per stage (default: the stage's RECIPE entry)")
     ap.add_argument("--batch", type=int, default=None, help="batch per rank (default: the stage's RECIPE entry)")
     ap.add_argument("--lr", type=float, default=None, help="learning rate (default: the stage's RECIPE entry)")

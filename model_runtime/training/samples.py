@@ -63,18 +63,17 @@ def with_head_shares(weights: np.ndarray, heads: list[str], shares: tuple[tuple[
     what is left). A prefix no clip has changes nothing. recipe.KICK_HEAD_SHARES says why."""
     w = np.asarray(weights, np.float64).copy()
     total = w.sum()
-    groups = [np.array([h.startswith(prefix) for h in heads]) for prefix, _ in shares]
     taken = np.zeros(len(w), bool)
-    kept = 1.0
-    for (prefix, share), g in zip(shares, groups):
-        g &= ~taken
-        if not g.any() or w[g].sum() == 0:
+    kept = 1.0     # the share left to the clips no prefix names
+    for prefix, share in shares:
+        group = np.array([h.startswith(prefix) for h in heads], bool) & ~taken
+        if w[group].sum() == 0:
             continue
-        w[g] *= share * total / w[g].sum()
-        taken |= g
+        w[group] *= share * total / w[group].sum()
+        taken |= group
         kept -= share
     rest = ~taken
-    if taken.any() and rest.any() and w[rest].sum() > 0:
+    if taken.any() and w[rest].sum() > 0:
         w[rest] *= kept * total / w[rest].sum()
     return w
 
