@@ -131,5 +131,5 @@ def test_head_shares_set_the_share_of_draws_of_the_named_caption_heads():
                           [1, 2, 3, 4])                            # no clip of that head: nothing changes
     model = load_model(config="tiny")
     s = SegmentSampler(lib, [0, 1, 2, 3], model.cfg, model.stats, seed=0, head_shares=(("a person kicks", 0.3),))
-    picks = [lib.captions[s.items[k][0]] for k in torch.multinomial(s.weights, 4000, True).tolist()]
-    assert sum("kicks" in c for c in picks) / 4000 == pytest.approx(0.3, abs=0.03)
+    kick_share = sum(float(s.weights[k]) for k, (i, _) in enumerate(s.items) if "kicks" in lib.captions[i])
+    assert kick_share == pytest.approx(0.3)                        # the sampler draws kicks 30 % of the time

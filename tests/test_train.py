@@ -461,4 +461,3 @@ def test_the_kicks_recipe_trains_the_decoder_on_reconstruction_alone_with_kicks_
     shown = StageLoss(model, "decoder", shown_weight=1.0)(b, torch.Generator().manual_seed(1))
     assert float(plain[0].detach()) == pytest.approx(plain[1]["rec"], rel=1e-6)     # the VAE's own reconstruction loss
     assert float(shown[0].detach()) > shown[1]["rec"] > 0          # plus the error of the motion as shown
-

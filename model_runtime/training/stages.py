@@ -103,8 +103,8 @@ class StageLoss(nn.Module):
         w[:len(DECODER_FIRST_FRAMES)] = torch.tensor(DECODER_FIRST_FRAMES, dtype=w.dtype)
         shown_loss = (shown * w / w.mean()).mean()
         return rec + self.shown_weight * shown_loss, {"rec": float(rec.detach()),
-                                                        "shown_m": float(shown.mean().detach()),
-                                                        "first_m": float(shown[0].detach())}
+                                                      "shown_m": float(shown.mean().detach()),
+                                                      "first_m": float(shown[0].detach())}
 
     def text_tokens(self, b: Batch, gen: torch.Generator) -> torch.Tensor:
         m = self.model
