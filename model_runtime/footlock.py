@@ -6,9 +6,11 @@ the model stays on the motion it was trained on, and applies the lock to what it
 
 A foot is in contact when its toe's sole is near the floor and the toe moves slowly (with hysteresis).
 At touch-down the toe's position is stored; while in contact the leg is solved so that, with the foot
-turned as the model generated it (the heel may roll up about the toe), the toe stays on that point. After lift-off
-the correction fades out over a few frames instead of snapping. When the pelvis has moved out of the
-leg's reach the contact is released early.
+turned as the model generated it, the toe stays on that point. Where the pelvis has moved past the leg's reach
+(a push-off the model stretched a little too far) the foot rolls about the toe, the heel lifting as in a real
+push-off, so the toe stays put. After lift-off the correction fades out over a few frames instead of snapping.
+When the pelvis has moved well out of the leg's reach (judged on the foot as generated) the contact is released
+early.
 """
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ FPS = 10.0
 LEGS = {"left": tuple(JOINT_INDEX[f"left_{n}"] for n in ("hip", "knee", "ankle", "foot")),
         "right": tuple(JOINT_INDEX[f"right_{n}"] for n in ("hip", "knee", "ankle", "foot"))}
 _OFFSETS = rest_offsets_np()
+_LEG_LENGTH = {leg: float(np.linalg.norm(_OFFSETS[leg[1]]) + np.linalg.norm(_OFFSETS[leg[2]])) for leg in LEGS.values()}
 
 
 @dataclass(frozen=True)
@@ -34,6 +37,7 @@ class FootLockConfig:
     fade_frames: int = 2            # frames to blend the correction out after lift-off
     reach: float = 0.999            # fraction of the leg's length the IK may stretch to
     max_miss: float = 0.04          # m: a planted toe further than this out of the leg's reach is let go
+    max_roll_deg: float = 30.0      # heel lift about a planted toe that a stretched leg may add (push-offs reach 30+)
 
 
 # 3-vector helpers: np.cross and np.linalg.norm cost tens of microseconds on one small vector (axis handling),
@@ -63,6 +67,24 @@ def _rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
     k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
     return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+
+
+def roll_about_toe(foot_rot: np.ndarray, toe_in_foot: np.ndarray, toe: np.ndarray, hip: np.ndarray,
+                   reach: float, max_roll: float) -> np.ndarray:
+    """The foot's world rotation (3, 3) turned about its toe at `toe` by the smallest angle (at most `max_roll`,
+    radians) that brings its ankle within `reach` of `hip`; unchanged where the ankle is within reach already.
+    toe_in_foot: the toe joint's offset in the foot's (ankle's) frame."""
+    a = -(foot_rot @ toe_in_foot)                       # toe -> ankle
+    h = hip - toe
+    r, dist = _norm(a), _norm(h)
+    if dist < 1e-9 or _norm(h - a) <= reach:
+        return foot_rot
+    now = math.acos(min(1.0, max(-1.0, float(a @ h) / (r * dist))))
+    need = math.acos(min(1.0, max(-1.0, (r * r + dist * dist - reach * reach) / (2.0 * r * dist))))
+    axis = _cross(a, h)
+    if _norm(axis) < 1e-9:
+        return foot_rot
+    return _axis_angle(axis / _norm(axis), min(max(now - need, 0.0), max_roll)) @ foot_rot
 
 
 def global_rotations(local_rot: np.ndarray) -> np.ndarray:
@@ -131,6 +153,12 @@ class FootLock:
     def set_state(self, state: tuple) -> None:
         self._prev_toe, self._anchor, self._fade = (dict(d) for d in state)
 
+    def _rolled(self, foot: np.ndarray, leg: tuple[int, int, int, int], toe: np.ndarray,
+                joints: np.ndarray) -> np.ndarray:
+        """The foot's world rotation rolled about a toe at `toe` as far as the leg needs to reach it."""
+        reach = self.cfg.reach * _LEG_LENGTH[leg]
+        return roll_about_toe(foot, _OFFSETS[leg[3]], toe, joints[leg[0]], reach, math.radians(self.cfg.max_roll_deg))
+
     def _contact(self, side: str, toe: np.ndarray, floor: float) -> bool:
         prev = self._prev_toe[side]
         speed = 0.0 if prev is None else float(np.linalg.norm(toe[:2] - prev[:2]) * FPS)
@@ -162,11 +190,15 @@ class FootLock:
                 continue
             if glob is None:                    # the first leg that is solved: work on copies
                 out, glob = local_rot.copy(), world_rot.copy()
-            foot = glob[leg[2]].copy()
-            toe_offset = foot @ _OFFSETS[leg[3]]
+            generated_foot = glob[leg[2]].copy()
             if self._anchor[side] is not None:
-                if solve_leg(glob, joints, leg, self._anchor[side] - toe_offset, foot, self.cfg.reach,
-                             self.cfg.max_miss):
+                anchor = self._anchor[side]
+                # whether the contact holds is judged on the foot as generated, as if it could not roll: a roll
+                # never keeps a toe planted that the model has moved on from (its swing would then snap)
+                miss = _norm(anchor - generated_foot @ _OFFSETS[leg[3]] - joints[leg[0]]) - self.cfg.reach * _LEG_LENGTH[leg]
+                foot = self._rolled(generated_foot, leg, anchor, joints)
+                if miss <= self.cfg.max_miss and solve_leg(glob, joints, leg, anchor - foot @ _OFFSETS[leg[3]], foot,
+                                                           self.cfg.reach, self.cfg.max_miss):
                     contacts[n] = True
                 else:                                   # out of reach: let this foot go
                     self._fade[side] = (self.cfg.fade_frames, self._anchor[side])
@@ -175,7 +207,10 @@ class FootLock:
                 left, anchor = self._fade[side]
                 w = left / (self.cfg.fade_frames + 1.0)
                 target = (1.0 - w) * toe + w * anchor
-                solve_leg(glob, joints, leg, target - toe_offset, foot, self.cfg.reach, self.cfg.max_miss)
+                target[2] = max(target[2], toe[2])      # lifts as generated: a fading toe is never dragged low
+                foot = self._rolled(generated_foot, leg, target, joints)
+                solve_leg(glob, joints, leg, target - foot @ _OFFSETS[leg[3]], foot, self.cfg.reach,
+                          self.cfg.max_miss)
                 self._fade[side] = (left - 1, anchor) if left > 1 else None
             local_from_global(glob, leg[:3], out)
         return (local_rot if out is None else out), contacts

@@ -79,3 +79,55 @@ def test_lifted_feet_are_not_locked_and_a_far_pelvis_lets_go():
     _, c = lock.apply(air, *forward_kinematics_np(air, np.array([0.0, 0.0, standing_pelvis_height() + 0.3]),
                                                 world_rotations=True))
     assert not c.any()
+
+
+def test_a_stretched_stance_leg_lifts_its_heel_about_the_planted_toe():
+    """Straight legs and a pelvis moving on: the foot rolls about the planted toe (the heel lifts, as in a
+    push-off) so the toe stays put; without the roll the same toe is dragged along."""
+    from model_runtime.footlock import FootLockConfig
+    rot = np.tile(np.eye(3), (22, 1, 1))                   # the rest pose: legs straight
+    probe = forward_kinematics_np(rot, np.zeros(3))
+    forward = probe[10] - probe[7]
+    forward[2] = 0.0
+    forward /= np.linalg.norm(forward)
+    lift = -(probe[[10, 11], 2].min() - 0.02)
+    pelvis = np.array([k * 0.025 * forward + (0.0, 0.0, lift) for k in range(8)])    # 17.5 cm on
+
+    def run(config):
+        lock = FootLock(config)
+        out = []
+        for p in pelvis:
+            cleaned, c = lock.apply(rot, *forward_kinematics_np(rot, p, world_rotations=True))
+            out.append((forward_kinematics_np(cleaned, p), c))
+        joints = np.array([j for j, _ in out])
+        return joints, np.array([c for _, c in out])
+
+    joints, contacts = run(FootLockConfig())
+    assert contacts.all()
+    assert np.linalg.norm(joints[:, 10] - joints[0, 10], axis=-1).max() < 0.005
+    assert joints[-1, 7, 2] - joints[0, 7, 2] > 0.01                      # the left heel (ankle) rose
+    length = np.linalg.norm(probe[4] - probe[1]) + np.linalg.norm(probe[7] - probe[4])
+    leg = np.linalg.norm(joints[:, 7] - joints[:, 1], axis=-1)
+    assert np.all(leg <= FootLockConfig().reach * length + 1e-6)         # the leg is never stretched past reach
+    stiff, _ = run(FootLockConfig(max_roll_deg=0.0))
+    assert np.linalg.norm(stiff[:, 10] - stiff[0, 10], axis=-1).max() > 0.02
+
+
+def test_a_lifting_foot_lets_go_at_its_generated_height():
+    """After lift-off the toe eases back to where the model put it across the floor, but rises as generated at
+    once: it is not dragged along near the floor while it catches up."""
+    rot, pelvis = _sliding_stance(frames=8, slide=0.01)
+    pelvis[4:, 2] += 0.08                                  # the body (so both toes) rises 8 cm at frame 4
+    lock = FootLock()
+    for k, p in enumerate(pelvis):
+        joints, glob = forward_kinematics_np(rot, p, world_rotations=True)
+        cleaned, c = lock.apply(rot, joints, glob)
+        toes = forward_kinematics_np(cleaned, p)[[10, 11]]
+        if k < 4:
+            assert c.all()
+            anchor = toes.copy()
+        elif k < 6:                                        # the fade frames
+            assert not c.any()
+            assert np.allclose(toes[:, 2], joints[[10, 11], 2], atol=1e-6)
+            gap = np.linalg.norm(toes[:, :2] - joints[[10, 11], :2], axis=-1)
+            assert np.all(gap > 0.001) and np.all(gap < np.linalg.norm(anchor[:, :2] - joints[[10, 11], :2], axis=-1))

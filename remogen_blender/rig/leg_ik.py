@@ -4,10 +4,11 @@ Analytic rather than Blender's IK constraint: it runs inside the one per-frame p
 numbers live and in a bake, no constraint to add to the user's rig and evaluate per frame), and a reachable
 ankle goal is met exactly instead of to an iterative solver's tolerance.
 
-A planted toe can be out of the leg's reach where the generated motion stretches the stance leg too far (the
-runtime lets its own ego's toe miss by a few centimetres there). `plant_legs` then first rolls the foot about
-the toe (the heel lifts, up to MAX_ROLL), then moves the pelvis (up to MAX_SHIFT of the leg's length) so that
-the stretched leg reaches while every other planted leg keeps its length: a straight knee bent by a few
+A planted toe can be out of the target leg's reach where the ego's stance leg is at full stretch and the
+target's proportions differ (the runtime rolls the ego's own foot about its toe there and the target's foot
+follows that roll, but a shorter leg or a longer foot can still fall short). `plant_legs` then first rolls the
+foot about the toe (the heel lifts, up to MAX_ROLL), then moves the pelvis (up to MAX_SHIFT of the leg's length)
+so that the stretched leg reaches while every other planted leg keeps its length: a straight knee bent by a few
 millimetres of pelvis drop would swing the whole leg, so the pelvis moves about the other foot instead.
 """
 from __future__ import annotations
