@@ -195,7 +195,8 @@ class FootLock:
                 anchor = self._anchor[side]
                 # whether the contact holds is judged on the foot as generated, as if it could not roll: a roll
                 # never keeps a toe planted that the model has moved on from (its swing would then snap)
-                miss = _norm(anchor - generated_foot @ _OFFSETS[leg[3]] - joints[leg[0]]) - self.cfg.reach * _LEG_LENGTH[leg]
+                ankle_goal = anchor - generated_foot @ _OFFSETS[leg[3]]
+                miss = _norm(ankle_goal - joints[leg[0]]) - self.cfg.reach * _LEG_LENGTH[leg]
                 foot = self._rolled(generated_foot, leg, anchor, joints)
                 if miss <= self.cfg.max_miss and solve_leg(glob, joints, leg, anchor - foot @ _OFFSETS[leg[3]], foot,
                                                            self.cfg.reach, self.cfg.max_miss):
