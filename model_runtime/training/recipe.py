@@ -143,8 +143,9 @@ def _listed(v):
 
 
 # `train --windows NAME`. "captured": the windows as the data holds them, what `train all` uses for every stage.
-# "balanced": what the shipped prior's last 2,000 steps trained on (MODEL_CARD.md, "How these weights were made"),
-# chosen on the val split among four such fine-tunes (the model card's "The prior trained further").
+# "balanced": what the shipped prior trained 2,000 steps further on before the "kicks" steps (MODEL_CARD.md, "How
+# these weights were made"), chosen on the val split among four such fine-tunes (the model card's "The prior trained
+# further"). "kicks": the shipped decoder's 4,000 and prior's 1,500 last steps.
 WINDOW_RECIPES = {
     "captured": WindowRecipe(),
     "balanced": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",)),
