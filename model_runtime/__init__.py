@@ -4,7 +4,7 @@ Public API:
     from model_runtime import load_model, ReactionSession, ReactionGroup, EgoSettings, EgoFrame, OccupancyGrid
     model = load_model()                       # shipped weights; load_model(path) or load_model(config=...)
     s = ReactionSession(model, text="walk to the person and wave", seed=0,
-                        alpha={"hhi": 1.0, "hsi": 1.0}, guidance=5.0, fwsr=True, scene=None)
+                        alpha={"hhi": 1.0, "hsi": 1.0}, guidance=6.0, fwsr=True, scene=None)
     s.reset(root_position=(0, 0, 0), yaw=0.0)
     f = s.step(partner=joints_22x3_or_None, goal=xyz_or_None)
     s.text_warning                             # one line when the text cannot be read (prompt_warning(text))
@@ -34,7 +34,7 @@ os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 
 from .config import ModelConfig
 from .data.bone_maps import BoneMapGuess, guess_bone_map, normalise_name, validate_bone_map
-from .errors import MAX_COORD, MAX_GUIDANCE, InputError, ModelFileError, ModelOutputError, RemogenError
+from .errors import DEFAULT_GUIDANCE, MAX_COORD, MAX_GUIDANCE, InputError, ModelFileError, ModelOutputError, RemogenError
 from .joints import JOINT_NAMES, NUM_JOINTS, PARENTS, rest_joints_np, standing_pelvis_height
 from .prompt import prompt_warning
 from .quat import continuous_quaternions, matrix_to_quat_np, qconj, qmul, qslerp, rigid_rotation
@@ -49,7 +49,7 @@ _LAZY = {
 }
 
 __all__ = ["load_model", "save_model", "ReactionSession", "ReactionGroup", "EgoSettings", "EgoFrame", "OccupancyGrid", "ModelConfig", "ControlConfig",
-           "RemogenError", "InputError", "ModelFileError", "ModelOutputError", "MAX_COORD", "MAX_GUIDANCE",
+           "RemogenError", "InputError", "ModelFileError", "ModelOutputError", "MAX_COORD", "MAX_GUIDANCE", "DEFAULT_GUIDANCE",
            "Motion", "load_motion", "prompt_warning",
            "WALK_CLIP", "JOINT_NAMES", "NUM_JOINTS", "PARENTS", "rest_joints_np", "standing_pelvis_height",
            "BoneMapGuess", "guess_bone_map", "normalise_name", "validate_bone_map",

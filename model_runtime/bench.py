@@ -20,7 +20,7 @@ it is still on the previous job; --pace S instead steps once every S seconds of 
 does (0.1 s: one model frame at real time).
 
 "model" times the networks alone, the work the paper's per-frame latency counts: at each segment start a full
-reverse diffusion (guidance 5, both Meta-Interaction Modules) and its decode, and every frame an FWSR
+reverse diffusion (the default guidance, both Meta-Interaction Modules) and its decode, and every frame an FWSR
 refinement and its decode; no test-time control, cleanup, kinematics or scene voxelisation. It is the one mode
 that runs on a GPU (--device cuda, or auto): the session's own work stays on the CPU.
 """
@@ -37,7 +37,7 @@ import torch
 from .checkpoint import load_model
 from .cli_help import HelpFormatter
 from .devices import device_name, resolve_device
-from .errors import RemogenError
+from .errors import DEFAULT_GUIDANCE, RemogenError
 from .fixtures import BOX_GOAL, approaching_partner, box_scene
 from .ego import EgoSettings
 from .group import ReactionGroup
@@ -65,7 +65,7 @@ def _started(runner, pipeline: bool) -> bool:
 
 def run_case(model, mode: str, frames: int, warmup: int, scene, pipeline: bool = False, pace: float = 0.0) -> dict:
     session = ReactionSession(model, text="walk to the person and wave", seed=0,
-                              alpha={"hhi": 1.0, "hsi": 1.0}, guidance=5.0,
+                              alpha={"hhi": 1.0, "hsi": 1.0}, guidance=DEFAULT_GUIDANCE,
                               fwsr=mode.startswith("fwsr"), scene=scene, slide=(mode == "slide"),
                               cleanup=(mode != "fwsr-raw"), control=mode not in ("fwsr-raw", "fwsr-nocontrol"),
                               pipeline=pipeline)

@@ -6,7 +6,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .errors import MAX_COORD, MAX_GUIDANCE, InputError
+from .errors import DEFAULT_GUIDANCE, MAX_COORD, MAX_GUIDANCE, InputError
 from .model import MODULE_NAMES
 from .skeleton import JOINT_NAMES, NUM_JOINTS
 
@@ -77,7 +77,7 @@ def check_alpha(alpha: Any) -> dict[str, float]:
 def check_guidance(value: Any) -> float:
     ok = not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
     if not ok or not 0.0 <= float(value) <= MAX_GUIDANCE:
-        raise InputError(f"guidance must be a number in 0..{MAX_GUIDANCE:g} (default 5), got {value!r}")
+        raise InputError(f"guidance must be a number in 0..{MAX_GUIDANCE:g} (default {DEFAULT_GUIDANCE:g}), got {value!r}")
     return float(value)
 
 

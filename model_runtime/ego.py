@@ -17,7 +17,7 @@ import torch
 from .checks import Checked, check_alpha, check_guidance, check_point, check_seed, check_text
 from .control import ControlConfig, ControlTargets, partner_future, passing_away
 from .distance_field import DistanceField
-from .errors import MAX_COORD, InputError
+from .errors import DEFAULT_GUIDANCE, MAX_COORD, InputError
 from .features import (ROOT_T, ROT6D, canonical_frame, feature_joints, features_from_pose, self_consistent,
                        to_canonical, world_points_to_canonical)
 from .footlock import FootLock
@@ -47,7 +47,7 @@ class EgoSettings:
     text: str = ""
     seed: int = 0
     alpha: dict | None = None
-    guidance: float = 5.0
+    guidance: float = DEFAULT_GUIDANCE
     fwsr: bool = True
     cleanup: bool = True
 

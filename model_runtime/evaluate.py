@@ -8,7 +8,7 @@
 Runs only on the clip library's held-out split (ClipLibrary.split("val")), never on training clips, and
 prints one JSON object:
     vae_reconstruction_mm       encode GT history + future, decode the mean latent, FK, mean joint error
-    next_segment_mm             the prior from real history and the clip's caption (guidance 5) against
+    next_segment_mm             the prior from real history and the clip's caption (default guidance) against
                                 a constant-velocity extrapolation of each joint; both on the F future frames
     foot_skating_cm_per_frame   horizontal speed of foot joints whose sole is within 5 cm of the floor,
                                 on prior rollouts, with the held-out clips themselves as reference
@@ -41,7 +41,7 @@ import numpy as np
 import torch
 
 from .cli_help import HelpFormatter
-from .errors import RemogenError
+from .errors import DEFAULT_GUIDANCE, RemogenError
 from .evaluation.plots import plot_reaction_strip, plot_training_curves
 from .evaluation.rollouts import ALPHA_OFF, ALPHA_ON, box_scenario, evaluate_rollouts, partner_scenario
 from .evaluation.segments import evaluate_segments
@@ -81,7 +81,7 @@ def _finite(x: Any) -> Any:
 
 def evaluate(model, lib, *, clips: int | None = None, windows: int | None = 512, rollouts: int = 8,
              rollout_frames: int = 60, scenario_frames: int = 60, seeds: Sequence[int] = (0, 1),
-             yaws: Sequence[float] = (math.pi / 2, -math.pi / 2, math.pi), guidance: float = 5.0,
+             yaws: Sequence[float] = (math.pi / 2, -math.pi / 2, math.pi), guidance: float = DEFAULT_GUIDANCE,
              plots: str | Path | None = None, log_dir: str | Path = "runs/train") -> dict:
     """All metrics as one dict (see the module docstring); writes plots into `plots` when given."""
     h, f = model.cfg.history, model.cfg.future
@@ -162,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rollout-frames", type=int, default=60, help="frames per rollout")
     ap.add_argument("--scenario-frames", type=int, default=60, help="frames per interaction scenario run")
     ap.add_argument("--seeds", default="0,1", help="comma-separated seeds for the scenarios")
-    ap.add_argument("--guidance", type=float, default=5.0, help="classifier-free guidance scale")
+    ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE, help="classifier-free guidance scale")
     ap.add_argument("--threads", type=int, default=1,
                     help="torch threads (1: batch-1 session steps are fastest single-threaded, as in bench)")
     args = ap.parse_args(argv)

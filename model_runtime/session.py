@@ -10,6 +10,7 @@ from typing import Any, Sequence
 
 import torch
 
+from .errors import DEFAULT_GUIDANCE
 from .control import ControlConfig
 from .ego import EgoFrame, EgoSettings
 from .group import ReactionGroup
@@ -41,7 +42,7 @@ class ReactionSession:
     """Online reaction generation for one ego. See group.py for the scheduling."""
 
     def __init__(self, model: ReMoGenModel, text: str = "", seed: int = 0, alpha: dict | None = None,
-                 guidance: float = 5.0, fwsr: bool = True, scene: Any = None, slide: bool = False,
+                 guidance: float = DEFAULT_GUIDANCE, fwsr: bool = True, scene: Any = None, slide: bool = False,
                  cleanup: bool = True, control: bool = True, control_config: ControlConfig | None = None,
                  pipeline: bool = False) -> None:
         settings = EgoSettings(text=text, seed=seed, alpha=alpha, guidance=guidance, fwsr=fwsr, cleanup=cleanup)

@@ -9,6 +9,7 @@ from ._runtime import api
 # Hard limits (Blender clamps to them): the runtime's own guidance bound (far beyond the trained range the
 # output blows up: 1e30 gives NaN joints); the seed is a 32-bit property.
 GUIDANCE_MAX = float(api().MAX_GUIDANCE)
+GUIDANCE_DEFAULT = float(api().DEFAULT_GUIDANCE)    # the runtime's, chosen with the shipped weights
 SEED_MAX = 2**31 - 1
 _GUIDANCE_HELP = f"Classifier-free guidance on the text (0 to {GUIDANCE_MAX:g})"
 
@@ -53,7 +54,7 @@ class RemogenEgoSettings:
         name="Scene (HSI)", default=1.0, min=0.0, max=1.0, subtype='FACTOR',
         description="How strongly the ego reacts to the scene meshes and the goal")
     guidance: FloatProperty(
-        name="Guidance", default=5.0, min=0.0, max=GUIDANCE_MAX, soft_max=10.0,
+        name="Guidance", default=GUIDANCE_DEFAULT, min=0.0, max=GUIDANCE_MAX, soft_max=10.0,
         description=_GUIDANCE_HELP)
     seed: IntProperty(
         name="Seed", default=0, min=0, max=SEED_MAX,

@@ -83,8 +83,8 @@ def test_walking_forward_joins_its_segments_keeps_its_feet_and_its_heading(model
     assert on["abs_net_yaw_mean_deg"] <= 20.0, on
 
 
-def test_standing_keeps_its_feet_planted_and_its_segments_joined(model):
-    """Standing drift (0.42 m a minute on the 48 val episodes) misses its 0.3 target: README lists it as missed."""
+def test_standing_stays_put_keeps_its_feet_planted_and_its_segments_joined(model):
     on = family(model, "stand")["alpha=1"]
     assert on["planted_toe_cm_s"] <= 1.0, on
     assert on["seam_ratio"] <= 1.3, on
+    assert on["drift_mean_m_per_min"] <= 0.3, on

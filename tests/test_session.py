@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 import torch
 
-from model_runtime import EgoFrame, InputError, ReactionSession
+from model_runtime import DEFAULT_GUIDANCE, EgoFrame, InputError, ReactionSession
 from model_runtime.bench import approaching_partner
 from model_runtime.features import canonical_frame, feature_joints, self_consistent, to_canonical, to_world
 
@@ -69,7 +69,7 @@ def test_fwsr_off_emits_exactly_the_segment_decodes(tiny_model):
             hist_world = self_consistent(hist_world)      # generated history as real frames are (features.py)
             rot, trans = canonical_frame(feature_joints(hist_world[0]))
             hist_n = m.stats.normalize(to_canonical(hist_world, rot, trans)).unsqueeze(0)
-            z0 = m.sample_latent(hist_n, te, Contexts({}), {"hhi": 0.0, "hsi": 0.0}, 5.0, gen)
+            z0 = m.sample_latent(hist_n, te, Contexts({}), {"hhi": 0.0, "hsi": 0.0}, DEFAULT_GUIDANCE, gen)
             fut = to_world(m.stats.denormalize(m.decode(hist_n, z0)[0]), rot, trans)
             ref.extend(fut)
             hist_world = fut[-cfg.history:]
@@ -212,8 +212,8 @@ def break_model_at(session, frame, breaker):
 @pytest.mark.parametrize("breaker, words", [
     (lambda m: m.vae.out.weight.fill_(float("nan")), "non-finite joints at frame 9: its weight vae.out.weight "
                                                       "holds NaN or inf"),
-    (lambda m: m.vae.out.bias.fill_(3e38), "non-finite joints at frame 9 with guidance 5"),  # finite weights
-    (lambda m: m.vae.out.bias.fill_(1e30), "joints beyond 1e+05 m at frame 9 with guidance 5"),
+    (lambda m: m.vae.out.bias.fill_(3e38), "non-finite joints at frame 9 with guidance 6"),  # finite weights (the default guidance)
+    (lambda m: m.vae.out.bias.fill_(1e30), "joints beyond 1e+05 m at frame 9 with guidance 6"),
 ])
 def test_a_non_finite_pose_raises_and_leaves_the_session_as_it_was(breaker, words):
     """The first non-finite frame raises ModelOutputError in one line naming the cause and the frame; the

@@ -7,6 +7,7 @@ import sys
 
 import numpy as np
 
+from ..errors import DEFAULT_GUIDANCE
 from .control_overrides import control_config_from
 
 
@@ -58,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--model", default=None, help="model file (default: the shipped weights)")
     ap.add_argument("--families", nargs="+", choices=FAMILIES, default=list(FAMILIES))
     ap.add_argument("--episodes", type=int, default=EPISODES_PER_FAMILY, help="episodes per family")
-    ap.add_argument("--guidance", type=float, default=5.0)
+    ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE)
     ap.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     ap.add_argument("--no-control", action="store_true",
                     help="roll out without test-time control: what the model has learned by itself")

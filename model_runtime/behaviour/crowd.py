@@ -30,7 +30,7 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 
 from ..checks import check_guidance
-from ..errors import InputError
+from ..errors import DEFAULT_GUIDANCE, InputError
 from .control_overrides import control_config_from
 from .metrics import GLIDE_SPEED, finite_mean, min_joint_clearance, peak_pelvis_speed
 from .scenarios import EPISODES_PER_FAMILY, SPLIT_SEEDS, WALK_TEXT
@@ -112,7 +112,7 @@ def closest_approach_m(tracks: Sequence[np.ndarray]) -> float:
     return min(min_joint_clearance(a, b) for a, b in combinations(tracks, 2))
 
 
-def roll_out_crowd(model, ep: CrowdEpisode, alpha: float, guidance: float = 5.0,
+def roll_out_crowd(model, ep: CrowdEpisode, alpha: float, guidance: float = DEFAULT_GUIDANCE,
                    **group_options) -> list[np.ndarray]:
     """Each ego's (frames, 22, 3) world joints in one crowd episode, alpha_HHI `alpha` and text guidance
     `guidance` for all."""
@@ -144,7 +144,7 @@ def summarize(closest: Sequence[float], layouts: Sequence[str], peaks: Sequence[
 
 
 def run_crowd(model, split: str, *, episodes: int = EPISODES_PER_FAMILY, alphas: Iterable[float] = (1.0, 0.0),
-              progress: Callable[[str], None] | None = None, guidance: float = 5.0, **group_options) -> dict:
+              progress: Callable[[str], None] | None = None, guidance: float = DEFAULT_GUIDANCE, **group_options) -> dict:
     """{"alpha=A": summary} plus "closest": {"alpha=A": [per-episode closest approach, m]}."""
     eps = draw_crowd_episodes(split, episodes)
     report: dict = {"split": split, "family": "crowd", "guidance": guidance, "closest": {}}
@@ -174,7 +174,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--episodes", type=int, default=EPISODES_PER_FAMILY)
     ap.add_argument("--alphas", type=float, nargs="+", default=[1.0, 0.0])
     ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--guidance", type=float, default=5.0, help="text guidance of every ego (the runtime's default 5)")
+    ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE,
+                    help=f"text guidance of every ego (the runtime's default {DEFAULT_GUIDANCE:g})")
     ap.add_argument("--control-set", action="append", default=[], metavar="NAME=VALUE",
                     help="override one test-time control setting (a field of model_runtime.ControlConfig); "
                          "repeatable. For choosing settings on the val split")

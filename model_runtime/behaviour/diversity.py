@@ -13,6 +13,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import DEFAULT_GUIDANCE
 from ..data.library import ClipLibrary
 from . import metrics as M
 from .real_clips import clip_takes
@@ -50,7 +51,7 @@ def real_takes(lib: ClipLibrary, caption: str, frames: int = TEXT_EPISODE_FRAMES
 
 def diversity_report(model, split: str, *, seeds: int = DIVERSITY_SEEDS, frames: int = TEXT_EPISODE_FRAMES,
                      prompts: tuple[str, ...] = DIVERSITY_PROMPTS, library: ClipLibrary | None = None,
-                     guidance: float = 5.0,
+                     guidance: float = DEFAULT_GUIDANCE,
                      progress: Callable[[str], None] | None = None, **session_options) -> dict:
     """{"prompts": {prompt: row}, "ratio_mean", "pass", ...}. A row: between_seeds_m (mean over seed pairs),
     real_between_takes_m, real_pairs and real_match (None, 0, None without a library or with fewer than two

@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING, Callable, Iterable
 
 import numpy as np
 
+from ..errors import DEFAULT_GUIDANCE
 from . import metrics as M
 from .metrics import finite_mean as _mean
 from .metrics import text_measures
@@ -32,7 +33,7 @@ def has_cue(ep: Episode) -> bool:
     return ep.partner is not None or ep.goal is not None or bool(ep.boxes)
 
 
-def roll_out(model, ep: Episode, alpha: float, *, guidance: float = 5.0, **session_options) -> np.ndarray:
+def roll_out(model, ep: Episode, alpha: float, *, guidance: float = DEFAULT_GUIDANCE, **session_options) -> np.ndarray:
     """(frames, 22, 3) world joints of the ego in one episode, both interaction alphas set to `alpha`."""
     from ..session import ReactionSession
     s = ReactionSession(model, text=ep.text, seed=ep.seed, alpha={"hhi": alpha, "hsi": alpha},
@@ -115,7 +116,7 @@ def real_reference() -> dict:
 
 
 def run_suite(model, split: str, *, families: Iterable[str] = FAMILIES, episodes: int | None = None,
-              alphas: Iterable[float] = ALPHAS, guidance: float = 5.0,
+              alphas: Iterable[float] = ALPHAS, guidance: float = DEFAULT_GUIDANCE,
               progress: Callable[[str], None] | None = None, keep_tracks: int = 12,
               library: ClipLibrary | None = None,
               diversity_seeds: int = 0, **session_options) -> dict:

@@ -23,6 +23,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ..errors import DEFAULT_GUIDANCE
 from ..cli_help import HelpFormatter
 from ..data.pairs.placement import min_clearance
 from .plots import _pyplot, save_figure
@@ -50,7 +51,7 @@ def start_frame(motion, index: int = 0):
     return EgoFrame(0, motion.joints[index].copy(), motion.root[index].copy(), motion.local_rotations[index].copy())
 
 
-def replay(model, take, *, seed: int, alpha_hhi: float, text: str | None = None, guidance: float = 5.0) -> np.ndarray:
+def replay(model, take, *, seed: int, alpha_hhi: float, text: str | None = None, guidance: float = DEFAULT_GUIDANCE) -> np.ndarray:
     """(T, 22, 3): the ego started as person B, stepped beside person A's replayed frames."""
     from ..session import ReactionSession
     s = ReactionSession(model, text=take.text if text is None else text, seed=seed,
@@ -68,7 +69,7 @@ def _mean(rows: list[dict]) -> dict:
 
 
 def evaluate_takes(model, takes: Sequence, seeds: Sequence[int] = (0, 1, 2, 3), *, text: str | None = None,
-                   guidance: float = 5.0, progress: Callable[[str], None] | None = None) -> dict:
+                   guidance: float = DEFAULT_GUIDANCE, progress: Callable[[str], None] | None = None) -> dict:
     """{"takes": {name: {...}}, "overall": {alpha: means}, "tracks": {name: {alpha: [ego joints per seed]}}}."""
     report: dict = {"takes": {}, "overall": {}, "tracks": {}}
     per_alpha: dict[float, list[dict]] = {a: [] for a in ALPHAS}
@@ -139,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--model", default=None, help="model file (default: the shipped weights)")
     ap.add_argument("--seeds", default="0,1,2,3", help="comma-separated seeds per take and alpha")
     ap.add_argument("--text", default=None, help="prompt for the ego in every take (default: each take's own)")
-    ap.add_argument("--guidance", type=float, default=5.0, help="classifier-free guidance scale")
+    ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE, help="classifier-free guidance scale")
     ap.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     ap.add_argument("--json", action="store_true", help="print the report as one JSON object")
     ap.add_argument("--plots", default=None, help="folder for one top-view PNG per take")

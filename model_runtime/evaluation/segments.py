@@ -7,7 +7,7 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from ..errors import RemogenError
+from ..errors import DEFAULT_GUIDANCE, RemogenError
 from ..features import canonicalize, feature_joints, features_to_pose, to_world
 from ..skeleton import forward_kinematics
 from .metrics import constant_velocity, joint_error_mm
@@ -34,7 +34,7 @@ def _future_joints_world(model, fut_n: torch.Tensor, rot: torch.Tensor, trans: t
 
 
 @torch.no_grad()
-def evaluate_segments(model, lib, clip_ids: Sequence[int], *, guidance: float = 5.0, seed: int = 0,
+def evaluate_segments(model, lib, clip_ids: Sequence[int], *, guidance: float = DEFAULT_GUIDANCE, seed: int = 0,
                       limit: int | None = 512, batch: int = 256) -> dict:
     """VAE reconstruction, prior next-segment error and the constant-velocity baseline on the same windows."""
     h, f = model.cfg.history, model.cfg.future
