@@ -77,7 +77,8 @@ def check_alpha(alpha: Any) -> dict[str, float]:
 def check_guidance(value: Any) -> float:
     ok = not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
     if not ok or not 0.0 <= float(value) <= MAX_GUIDANCE:
-        raise InputError(f"guidance must be a number in 0..{MAX_GUIDANCE:g} (default {DEFAULT_GUIDANCE:g}), got {value!r}")
+        raise InputError(f"guidance must be a number in 0..{MAX_GUIDANCE:g} (default {DEFAULT_GUIDANCE:g}), "
+                         f"got {value!r}")
     return float(value)
 
 

@@ -23,5 +23,5 @@ MAX_COORD = 1e5
 MAX_GUIDANCE = 20.0
 # The text guidance every session, group, bake and evaluation uses unless told otherwise. Chosen on the behaviour
 # suite's val split with the shipped weights: 6 holds a standing ego still (drift 0.41 -> 0.15 m a minute) and keeps
-# every text kind that 5 gives; 7 loses the jumps (README, "The model as it stands").
+# every text kind that 5 gives (with the weights before, 6 and 7 lost the jumps; README, "The model as it stands").
 DEFAULT_GUIDANCE = 6.0

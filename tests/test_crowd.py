@@ -76,7 +76,8 @@ def test_command_line_writes_a_report_and_rejects_bad_input(tiny_model, tmp_path
     out = tmp_path / "crowd.json"
     assert main(["--split", "test", "--episodes", "2", "--alphas", "1", "--json", str(out)]) == 0
     report = json.loads(out.read_text())
-    assert report["split"] == "test" and report["alpha=1"]["episodes"] == 2 and report["guidance"] == model_runtime.DEFAULT_GUIDANCE
+    assert report["split"] == "test" and report["alpha=1"]["episodes"] == 2
+    assert report["guidance"] == model_runtime.DEFAULT_GUIDANCE
     assert "test crowd alpha=1" in capsys.readouterr().out
     assert main(["--episodes", "0"]) == 2
     err = capsys.readouterr().err.strip()

@@ -212,7 +212,7 @@ def break_model_at(session, frame, breaker):
 @pytest.mark.parametrize("breaker, words", [
     (lambda m: m.vae.out.weight.fill_(float("nan")), "non-finite joints at frame 9: its weight vae.out.weight "
                                                       "holds NaN or inf"),
-    (lambda m: m.vae.out.bias.fill_(3e38), "non-finite joints at frame 9 with guidance 6"),  # finite weights (the default guidance)
+    (lambda m: m.vae.out.bias.fill_(3e38), "non-finite joints at frame 9 with guidance 6"),  # finite weights
     (lambda m: m.vae.out.bias.fill_(1e30), "joints beyond 1e+05 m at frame 9 with guidance 6"),
 ])
 def test_a_non_finite_pose_raises_and_leaves_the_session_as_it_was(breaker, words):

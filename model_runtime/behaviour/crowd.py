@@ -144,7 +144,8 @@ def summarize(closest: Sequence[float], layouts: Sequence[str], peaks: Sequence[
 
 
 def run_crowd(model, split: str, *, episodes: int = EPISODES_PER_FAMILY, alphas: Iterable[float] = (1.0, 0.0),
-              progress: Callable[[str], None] | None = None, guidance: float = DEFAULT_GUIDANCE, **group_options) -> dict:
+              progress: Callable[[str], None] | None = None, guidance: float = DEFAULT_GUIDANCE,
+              **group_options) -> dict:
     """{"alpha=A": summary} plus "closest": {"alpha=A": [per-episode closest approach, m]}."""
     eps = draw_crowd_episodes(split, episodes)
     report: dict = {"split": split, "family": "crowd", "guidance": guidance, "closest": {}}

@@ -51,7 +51,8 @@ def start_frame(motion, index: int = 0):
     return EgoFrame(0, motion.joints[index].copy(), motion.root[index].copy(), motion.local_rotations[index].copy())
 
 
-def replay(model, take, *, seed: int, alpha_hhi: float, text: str | None = None, guidance: float = DEFAULT_GUIDANCE) -> np.ndarray:
+def replay(model, take, *, seed: int, alpha_hhi: float, text: str | None = None,
+           guidance: float = DEFAULT_GUIDANCE) -> np.ndarray:
     """(T, 22, 3): the ego started as person B, stepped beside person A's replayed frames."""
     from ..session import ReactionSession
     s = ReactionSession(model, text=take.text if text is None else text, seed=seed,
