@@ -109,8 +109,24 @@ def test_a_stretched_stance_leg_lifts_its_heel_about_the_planted_toe():
     length = np.linalg.norm(probe[4] - probe[1]) + np.linalg.norm(probe[7] - probe[4])
     leg = np.linalg.norm(joints[:, 7] - joints[:, 1], axis=-1)
     assert np.all(leg <= FootLockConfig().reach * length + 1e-6)         # the leg is never stretched past reach
-    stiff, _ = run(FootLockConfig(max_roll_deg=0.0))
+    stiff, stiff_contacts = run(FootLockConfig(max_roll_deg=0.0))
     assert np.linalg.norm(stiff[:, 10] - stiff[0, 10], axis=-1).max() > 0.02
+    assert np.array_equal(stiff_contacts, contacts)                       # the roll does not make contacts longer
+
+
+def test_a_roll_never_holds_a_toe_the_model_has_moved_on_from():
+    """Whether a contact holds is judged on the foot as generated: a pelvis that runs away releases the toe at
+    the same frame with the roll as without it."""
+    from model_runtime.footlock import FootLockConfig
+    rot, pelvis = _sliding_stance(frames=30, slide=0.05)                 # 1.5 m: no leg reaches that far back
+
+    def contacts(config):
+        lock = FootLock(config)
+        return np.array([lock.apply(rot, *forward_kinematics_np(rot, p, world_rotations=True))[1] for p in pelvis])
+
+    rolled, stiff = contacts(FootLockConfig()), contacts(FootLockConfig(max_roll_deg=0.0))
+    assert not rolled.all(axis=1).all()                                  # the far pelvis lets a foot go ...
+    assert np.array_equal(rolled, stiff)                                 # ... exactly when it would without the roll
 
 
 def test_a_lifting_foot_lets_go_at_its_generated_height():
