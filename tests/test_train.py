@@ -414,6 +414,23 @@ def test_snapshots_hold_the_ema_model_at_their_step(tmp_path, lib):
     assert all(torch.equal(vs[k], vf[k]) for k in vs)   # frozen stages are untouched
 
 
+def test_a_decoder_snapshot_carries_its_own_decoder_sensitivity(tmp_path, lib):
+    """FWSR's damping reads the decoder's sensitivity: a decoder-stage snapshot measures its own decoder's, as the
+    stage's final model file does, instead of keeping the starting file's."""
+    import copy
+    from model_runtime.training.setup import decoder_sensitivity
+    out = tmp_path / "run"
+    train_stage("vae", out, lib, config="tiny", steps=1, batch=8, val_every=1, val_batches=1, progress=False)
+    start = load_model(out / "model.pt", warn_untrained=False).fwsr.sensitivity.clone()
+    train_stage("decoder", out, lib, config="tiny", steps=4, batch=8, val_every=2, val_batches=1, progress=False,
+                snapshot_every=2, lr=1e-2)
+    snap = load_model(out / "snapshots" / "decoder_000002.pt", warn_untrained=False)
+    again = copy.deepcopy(snap)
+    decoder_sensitivity(again, lib, 0)
+    assert torch.allclose(snap.fwsr.sensitivity, again.fwsr.sensitivity)
+    assert not torch.allclose(snap.fwsr.sensitivity, start)
+
+
 def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
     import numpy as np
     from model_runtime.data.library import derived_kind
@@ -444,9 +461,23 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
     assert record == {"name": "balanced", "still_share": 0.75, "slow_walk_share": 0.5, "caption_balance": 0.5,
                       "startup_stages": ["prior"], "reversal_stages": [], "turn_arrival_stages": [],
                       "step_aside_rule": "ahead", "face_arrivals": False, "walk_aside": False,
-                      "head_shares": [], "head_share_stages": [], "decoder_shown_weight": 1.0}
+                      "head_shares": [], "head_share_stages": [], "decoder_shown_weight": 1.0,
+                      "hhi_copy_stages": []}
     with pytest.raises(RemogenError, match="unknown window recipe 'odd'; use one of captured, balanced, reversed"):
         train_stage("prior", out, lib, config="tiny", steps=1, progress=False, windows="odd")
+
+
+def test_the_kicks_hhi_recipe_shows_the_decoder_the_hhi_copies(lib):
+    """`hhi_copy_stages`: the decoder stage also draws the HHI stage's copies (stepping aside, avoiding, ...), so
+    it learns to render the motion the HHI module asks for; the plain kicks recipe does not."""
+    from model_runtime.data.library import derived_kind
+    from model_runtime.training.recipe import WINDOW_RECIPES
+    from model_runtime.training.setup import build_samplers
+    model = load_model(config="tiny")
+    with_copies = build_samplers("decoder", model, lib, seed=0, rank=0, windows=WINDOW_RECIPES["kicks_hhi"])[0]
+    without = build_samplers("decoder", model, lib, seed=0, rank=0, windows=WINDOW_RECIPES["kicks"])[0]
+    added = {derived_kind(n) for n in with_copies.lib.names} - {derived_kind(n) for n in without.lib.names}
+    assert added and len(with_copies.lib) > len(without.lib)
 
 
 def test_the_kicks_recipe_trains_the_decoder_on_reconstruction_alone_with_kicks_drawn_more_often(lib):

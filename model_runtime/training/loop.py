@@ -3,6 +3,7 @@ minutes and the EMA model at the end (and, when asked, every N steps, so a check
 behaviour suite's val split); under torchrun the ranks train data-parallel and stop together."""
 from __future__ import annotations
 
+import copy
 import dataclasses
 
 import gc
@@ -156,7 +157,11 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     def save_snapshot() -> None:
         ema.swap()
         try:
-            save_model(model, out / "snapshots" / f"{stage}_{step:06d}.pt",
+            snap = model
+            if stage == "decoder":   # FWSR's damping reads the decoder's sensitivity: each snapshot measures its own
+                snap = copy.deepcopy(model).cpu()
+                decoder_sensitivity(snap, lib, seed)
+            save_model(snap, out / "snapshots" / f"{stage}_{step:06d}.pt",
                        meta=stage_meta(step, wall + time.time() - t_start))
         finally:
             ema.swap()

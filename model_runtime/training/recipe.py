@@ -132,6 +132,7 @@ class WindowRecipe:
     head_shares: tuple[tuple[str, float], ...] = ()   # (caption head prefix, share of the draws): KICK_HEAD_SHARES
     head_share_stages: tuple[str, ...] = ()            # the stages whose windows get the head shares
     decoder_shown_weight: float = DECODER_SHOWN_WEIGHT   # the decoder stage's weight of the motion as shown
+    hhi_copy_stages: tuple[str, ...] = ()  # other stages than HHI and FWSR that see the HHI copies too (hhi_copies.py)
 
     def as_meta(self) -> dict:
         return {k: _listed(v) for k, v in asdict(self).items()}
@@ -170,6 +171,12 @@ WINDOW_RECIPES = {
     "kicks": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",),
                           head_share_stages=("prior", "decoder"), head_shares=KICK_HEAD_SHARES,
                           decoder_shown_weight=0.0),
+    # the kicks windows, and the decoder stage also on the HHI copies (stepping aside, avoiding, arriving,
+    # following): a decoder that renders the sidestep the HHI module asks for. Measured on val and not shipped: the
+    # learned crossing gains (56 -> 73 % without control), standing drift and an alpha-0 seam are lost (README)
+    "kicks_hhi": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",),
+                              head_share_stages=("prior", "decoder"), head_shares=KICK_HEAD_SHARES,
+                              decoder_shown_weight=0.0, hhi_copy_stages=("decoder",)),
 }
 # FWSR reads the ego's latest frames. At run time those are its own output; trained on real ones only, the
 # refiner learned to continue the real motion and at run time amplified its own: walking forward on the val split

@@ -100,6 +100,14 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids, add_startups, seed)
         note(f"{n} start-up copies (standing, then setting off)")
     pairs_tr = pairs_va = scenes_tr = scenes_va = None
+    if stage in windows.hhi_copy_stages and stage not in ("hhi", "fwsr"):
+        # the HHI stage's copies of real clips as plain motion (no partner): the decoder learns to render them
+        from ..data.avoidance import STEP_RULES
+        from ..data.hhi_copies import add_hhi_copies
+        derive = functools.partial(add_hhi_copies, step_rule=STEP_RULES[windows.step_aside_rule],
+                                   face_arrivals=windows.face_arrivals, walk_aside=windows.walk_aside)
+        lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids, derive, seed)
+        note(f"{n} HHI copies (turned, avoiding, stepping aside, stopping, following)")
     if stage in ("hhi", "fwsr"):
         from ..data.hhi_copies import add_hhi_copies
         from ..data.pairs import build_hhi_pairs
