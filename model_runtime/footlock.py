@@ -153,11 +153,15 @@ class FootLock:
     def set_state(self, state: tuple) -> None:
         self._prev_toe, self._anchor, self._fade = (dict(d) for d in state)
 
+    def _reach(self, leg: tuple[int, int, int, int]) -> float:
+        """How far from the hip the IK may put the ankle (m)."""
+        return self.cfg.reach * _LEG_LENGTH[leg]
+
     def _rolled(self, foot: np.ndarray, leg: tuple[int, int, int, int], toe: np.ndarray,
                 joints: np.ndarray) -> np.ndarray:
         """The foot's world rotation rolled about a toe at `toe` as far as the leg needs to reach it."""
-        reach = self.cfg.reach * _LEG_LENGTH[leg]
-        return roll_about_toe(foot, _OFFSETS[leg[3]], toe, joints[leg[0]], reach, math.radians(self.cfg.max_roll_deg))
+        return roll_about_toe(foot, _OFFSETS[leg[3]], toe, joints[leg[0]], self._reach(leg),
+                              math.radians(self.cfg.max_roll_deg))
 
     def _contact(self, side: str, toe: np.ndarray, floor: float) -> bool:
         prev = self._prev_toe[side]
@@ -195,11 +199,13 @@ class FootLock:
                 anchor = self._anchor[side]
                 # whether the contact holds is judged on the foot as generated, as if it could not roll: a roll
                 # never keeps a toe planted that the model has moved on from (its swing would then snap)
-                ankle_goal = anchor - generated_foot @ _OFFSETS[leg[3]]
-                miss = _norm(ankle_goal - joints[leg[0]]) - self.cfg.reach * _LEG_LENGTH[leg]
-                foot = self._rolled(generated_foot, leg, anchor, joints)
-                if miss <= self.cfg.max_miss and solve_leg(glob, joints, leg, anchor - foot @ _OFFSETS[leg[3]], foot,
-                                                           self.cfg.reach, self.cfg.max_miss):
+                miss = _norm(anchor - generated_foot @ _OFFSETS[leg[3]] - joints[leg[0]]) - self._reach(leg)
+                held = miss <= self.cfg.max_miss
+                if held:                                # only a held toe is worth rolling the foot for
+                    foot = self._rolled(generated_foot, leg, anchor, joints)
+                    held = solve_leg(glob, joints, leg, anchor - foot @ _OFFSETS[leg[3]], foot, self.cfg.reach,
+                                     self.cfg.max_miss)
+                if held:
                     contacts[n] = True
                 else:                                   # out of reach: let this foot go
                     self._fade[side] = (self.cfg.fade_frames, self._anchor[side])

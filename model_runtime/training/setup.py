@@ -56,6 +56,14 @@ def _derive(lib, train_ids: list[int], val_ids: list[int], derive: Callable, see
     return lib, train_ids, val_ids, len(derived)
 
 
+def _hhi_copies(windows: WindowRecipe) -> Callable:
+    """The derivation that adds the HHI copies of real clips (data/hhi_copies.py) as the recipe makes them."""
+    from ..data.avoidance import STEP_RULES
+    from ..data.hhi_copies import add_hhi_copies
+    return functools.partial(add_hhi_copies, step_rule=STEP_RULES[windows.step_aside_rule],
+                             face_arrivals=windows.face_arrivals, walk_aside=windows.walk_aside)
+
+
 def _chain(*derives: Callable) -> Callable:
     """One derivation that runs `derives` in turn, each on the clips given (real ones: the derived clips of one
     are never the sources of the next), and returns the library with all their copies."""
@@ -102,23 +110,15 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
     pairs_tr = pairs_va = scenes_tr = scenes_va = None
     if stage in windows.hhi_copy_stages and stage not in ("hhi", "fwsr"):
         # the HHI stage's copies of real clips as plain motion (no partner): the decoder learns to render them
-        from ..data.avoidance import STEP_RULES
-        from ..data.hhi_copies import add_hhi_copies
-        derive = functools.partial(add_hhi_copies, step_rule=STEP_RULES[windows.step_aside_rule],
-                                   face_arrivals=windows.face_arrivals, walk_aside=windows.walk_aside)
-        lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids, derive, seed)
+        lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids, _hhi_copies(windows), seed)
         note(f"{n} HHI copies (turned, avoiding, stepping aside, stopping, following)")
     if stage in ("hhi", "fwsr"):
-        from ..data.hhi_copies import add_hhi_copies
         from ..data.pairs import build_hhi_pairs
         note(f"building partners for {len(train_ids) + len(val_ids)} clips (turned, avoiding, stepping-aside, "
              "stopping and following copies of real clips, then HHI pairs) ...")
         # copies of real clips for what the data has no example of: a turn on the spot, getting out of a walker's
         # way, stopping at someone, following someone (data/hhi_copies.py)
-        from ..data.avoidance import STEP_RULES
-        derive = functools.partial(add_hhi_copies, step_rule=STEP_RULES[windows.step_aside_rule],
-                                   face_arrivals=windows.face_arrivals, walk_aside=windows.walk_aside)
-        lib, train_ids, val_ids, pairs_tr, pairs_va = _derive_then_build(lib, train_ids, val_ids, derive,
+        lib, train_ids, val_ids, pairs_tr, pairs_va = _derive_then_build(lib, train_ids, val_ids, _hhi_copies(windows),
                                                                          build_hhi_pairs, seed)
         note(f"{len(pairs_tr)} training and {len(pairs_va)} held-out HHI pairs")
         if not pairs_tr:
