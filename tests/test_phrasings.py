@@ -68,3 +68,36 @@ def test_held_out_prompts_are_in_no_phrasing_of_the_data_folder_captions():
     for prompt in HELD_OUT_PROMPTS:
         words = normalised_words(prompt)
         assert not any(words in p for p in phrasings), prompt
+
+
+def test_wider_phrasings_add_synonyms_of_slow_and_backward_walks_only_when_asked():
+    plain, wider = caption_phrasings("a person walks backwards, tired"), caption_phrasings(
+        "a person walks backwards, tired", True)
+    assert set(plain) < set(wider)
+    assert "someone steps back, wearily" in wider and "someone steps back, wearily" not in plain
+    assert "a person moves slowly" in caption_phrasings("a person walks slowly", True)
+    assert caption_phrasings("a person punches", True) == caption_phrasings("a person punches")
+
+
+def test_wider_phrasings_hold_no_word_of_a_held_out_prompt():
+    from model_runtime.data.phrasings import WIDER_VERB_SYNONYMS
+    held_words = {w for p in HELD_OUT_PROMPTS for w in normalised_words(p).split()}
+    common = {"a", "an", "at", "in", "the", "to", "with"}     # words that carry no motion
+    for subs in WIDER_VERB_SYNONYMS.values():
+        for sub in subs:
+            assert not (set(normalised_words(sub).split()) & held_words) - common, sub
+
+
+def test_a_recipe_with_wider_phrasings_trains_on_them():
+    from model_runtime import load_model
+    from model_runtime.training.recipe import WINDOW_RECIPES
+    from model_runtime.training.samples import SegmentSampler
+    from synthetic import synthetic_library
+    assert WINDOW_RECIPES["kicks_reversed"].wider_phrasings and not WINDOW_RECIPES["kicks"].wider_phrasings
+    lib = synthetic_library(6, 40)
+    lib.captions = ["a person walks backwards"] * len(lib.captions)
+    model = load_model(config="tiny")
+    texts = set(SegmentSampler(lib, list(range(6)), model.cfg, model.stats, seed=0, still_share=0.0,
+                               wider_phrasings=True).sample(256).text)
+    assert texts <= set(caption_phrasings("a person walks backwards", True))
+    assert texts - set(caption_phrasings("a person walks backwards"))

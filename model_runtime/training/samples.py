@@ -132,8 +132,9 @@ class SegmentSampler:
                  seed: int = 0, pairs: list | None = None, scenes: list | None = None,
                  still_share: float = STILL_SHARE, slow_walk_share: float = SLOW_WALK_SHARE,
                  caption_balance_power: float = 0.0,
-                 head_shares: tuple[tuple[str, float], ...] = ()) -> None:
+                 head_shares: tuple[tuple[str, float], ...] = (), wider_phrasings: bool = False) -> None:
         self.lib, self.cfg, self.stats = lib, cfg, stats
+        self.wider_phrasings = wider_phrasings
         self.still_share, self.slow_walk_share = still_share, slow_walk_share
         self.pairs, self.scenes = pairs, scenes
         self.span = cfg.history + cfg.future
@@ -229,7 +230,7 @@ class SegmentSampler:
             seg = self.stats.normalize(seg)
             hist.append(seg[:h])
             fut.append(seg[h:])
-            texts.append(pick_phrasing(self._caption(feats[s:s + self.span], clip), self.gen))
+            texts.append(pick_phrasing(self._caption(feats[s:s + self.span], clip), self.gen, self.wider_phrasings))
             if self.pairs is not None:
                 lag = int(torch.randint(0, f + 1, (1,), generator=self.gen))
                 end = s + h - 1 - lag  # last partner frame seen by the diffusion

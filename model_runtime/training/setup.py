@@ -146,7 +146,8 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
     tr = SegmentSampler(lib, train_ids, model.cfg, stats, seed=seed * 1000 + rank, pairs=pairs_tr,
                         scenes=scenes_tr, caption_balance_power=windows.caption_balance if stage == "prior" else 0.0,
                         head_shares=windows.head_shares if stage in windows.head_share_stages else (),
-                        still_share=windows.still_share, slow_walk_share=windows.slow_walk_share)
+                        still_share=windows.still_share, slow_walk_share=windows.slow_walk_share,
+                        wider_phrasings=windows.wider_phrasings)
     if pairs_va == [] or scenes_va == []:
         note(f"note: no held-out clip fits the {stage} stage's rules: it trains without a held-out loss")
         return tr, None
