@@ -47,6 +47,7 @@ _LAZY = {
     "ReactionGroup": ".group", "EgoSettings": ".ego",
     "OccupancyGrid": ".voxel", "ControlConfig": ".control",
     "Motion": ".data.motion", "load_motion": ".data.motion",
+    "toe_roll": ".footlock",
 }
 
 __all__ = ["load_model", "save_model", "ReactionSession", "ReactionGroup", "EgoSettings", "EgoFrame", "OccupancyGrid", "ModelConfig", "ControlConfig",
@@ -55,7 +56,8 @@ __all__ = ["load_model", "save_model", "ReactionSession", "ReactionGroup", "EgoS
            "Motion", "load_motion", "prompt_warning",
            "WALK_CLIP", "JOINT_NAMES", "NUM_JOINTS", "PARENTS", "rest_joints_np", "standing_pelvis_height",
            "BoneMapGuess", "guess_bone_map", "normalise_name", "validate_bone_map",
-           "qmul", "qconj", "qslerp", "matrix_to_quat_np", "rigid_rotation", "continuous_quaternions"]
+           "qmul", "qconj", "qslerp", "matrix_to_quat_np", "rigid_rotation", "continuous_quaternions",
+           "toe_roll"]
 __version__ = "0.1.0"
 
 # A real walk (CMU trial 05_01, retargeted to the SMPL-X body, 10 fps pose channels): the partner of the demo

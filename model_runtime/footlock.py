@@ -69,22 +69,33 @@ def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
 
 
-def roll_about_toe(foot_rot: np.ndarray, toe_in_foot: np.ndarray, toe: np.ndarray, hip: np.ndarray,
-                   reach: float, max_roll: float) -> np.ndarray:
-    """The foot's world rotation (3, 3) turned about its toe at `toe` by the smallest angle (at most `max_roll`,
-    radians) that brings its ankle within `reach` of `hip`; unchanged where the ankle is within reach already.
-    toe_in_foot: the toe joint's offset in the foot's (ankle's) frame."""
-    a = -(foot_rot @ toe_in_foot)                       # toe -> ankle
-    h = hip - toe
+_NO_TURN = np.eye(3)
+_NO_TURN.setflags(write=False)     # returned shared: most frames need no roll, and a new array costs per frame
+
+
+def toe_roll(toe_to_ankle: np.ndarray, toe_to_hip: np.ndarray, reach: float, max_roll: float) -> np.ndarray:
+    """(3, 3): the smallest turn of a foot about its planted toe (at most `max_roll` radians) that brings the ankle
+    within `reach` of the hip; the identity (read-only) where it is within reach already. Vectors (3,) from the
+    toe. One foot at a time, in scalar arithmetic: it runs per frame (the foot lock here, a target rig's leg
+    solver)."""
+    a, h = toe_to_ankle, toe_to_hip
     r, dist = _norm(a), _norm(h)
     if dist < 1e-9 or _norm(h - a) <= reach:
-        return foot_rot
+        return _NO_TURN
     now = math.acos(min(1.0, max(-1.0, float(a @ h) / (r * dist))))
     need = math.acos(min(1.0, max(-1.0, (r * r + dist * dist - reach * reach) / (2.0 * r * dist))))
     axis = _cross(a, h)
     if _norm(axis) < 1e-9:
-        return foot_rot
-    return _axis_angle(axis / _norm(axis), min(max(now - need, 0.0), max_roll)) @ foot_rot
+        return _NO_TURN
+    return _axis_angle(axis / _norm(axis), min(max(now - need, 0.0), max_roll))
+
+
+def roll_about_toe(foot_rot: np.ndarray, toe_in_foot: np.ndarray, toe: np.ndarray, hip: np.ndarray,
+                   reach: float, max_roll: float) -> np.ndarray:
+    """The foot's world rotation (3, 3) turned about its toe at `toe` by `toe_roll`.
+    toe_in_foot: the toe joint's offset in the foot's (ankle's) frame."""
+    turn = toe_roll(-(foot_rot @ toe_in_foot), hip - toe, reach, max_roll)
+    return foot_rot if turn is _NO_TURN else turn @ foot_rot
 
 
 def global_rotations(local_rot: np.ndarray) -> np.ndarray:

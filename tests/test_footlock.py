@@ -2,6 +2,7 @@
 import math
 
 import numpy as np
+import pytest
 
 from model_runtime.footlock import LEGS, FootLock, global_rotations, solve_leg
 from model_runtime.joints import standing_pelvis_height
@@ -147,3 +148,23 @@ def test_a_lifting_foot_lets_go_at_its_generated_height():
             assert np.allclose(toes[:, 2], joints[[10, 11], 2], atol=1e-6)
             gap = np.linalg.norm(toes[:, :2] - joints[[10, 11], :2], axis=-1)
             assert np.all(gap > 0.001) and np.all(gap < np.linalg.norm(anchor[:, :2] - joints[[10, 11], :2], axis=-1))
+
+
+def test_toe_roll_brings_the_ankle_within_reach_turning_no_further_than_allowed():
+    from model_runtime import toe_roll
+    toe_to_ankle, toe_to_hip = np.array([0.0, 0.15, 0.05]), np.array([0.0, 0.45, 0.85])
+    assert np.array_equal(toe_roll(toe_to_ankle, toe_to_hip, 1.0, 0.5), np.eye(3))     # within reach: no turn
+    reach = np.linalg.norm(toe_to_hip - toe_to_ankle) - 0.02
+    turn = toe_roll(toe_to_ankle, toe_to_hip, reach, 0.5)
+    assert np.allclose(turn @ turn.T, np.eye(3)) and np.linalg.det(turn) > 0.99
+    assert np.linalg.norm(toe_to_hip - turn @ toe_to_ankle) == pytest.approx(reach, abs=1e-9)
+    capped = toe_roll(toe_to_ankle, toe_to_hip, reach, 0.01)
+    assert np.degrees(np.arccos((np.trace(capped) - 1) / 2)) == pytest.approx(np.degrees(0.01), abs=1e-6)
+
+
+def test_toe_roll_needs_no_pytorch():
+    import subprocess
+    import sys
+    code = "import sys, model_runtime; model_runtime.toe_roll; print('torch' in sys.modules)"
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() \
+        == "False"

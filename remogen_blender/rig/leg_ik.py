@@ -17,10 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._runtime import api
 from .rotations import axis_angle, cross, norm, rotation_between, solve3, unit
 
 REACH = 0.999                   # share of the stretched leg's length the solve may use (a straight knee flips)
-MAX_ROLL = np.radians(8.0)      # foot roll about a planted toe that a stretched leg may add
+_RT = api()   # the runtime's public package (its toe roll needs no PyTorch)
+
+MAX_ROLL = float(np.radians(8.0))    # foot roll about a planted toe that a stretched leg may add
 MAX_SHIFT = 0.04                # share of the leg's length the pelvis may move so that a planted leg reaches
 STRAIGHT = (0.98, 0.995)        # hip-to-ankle share of the reach from which a knee counts as straight (fully at 0.995)
 
@@ -49,13 +52,13 @@ def solve_leg(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, goal: np.nda
 
 
 def roll_about_toe(ankle: np.ndarray, toe: np.ndarray, hip: np.ndarray, reach: np.ndarray) -> np.ndarray:
-    """(N, 3, 3): the smallest turn of the foot about the toe (at most MAX_ROLL) that brings the ankle within
-    `reach` of the hip; identity where it is within reach already."""
-    a, h = ankle - toe, hip - toe
-    r, dist = norm(a), norm(h)
-    now = np.arccos(np.clip(np.sum(a * h, -1) / np.maximum(r * dist, 1e-12), -1.0, 1.0))
-    need = np.arccos(np.clip((r * r + dist * dist - reach * reach) / np.maximum(2.0 * r * dist, 1e-12), -1.0, 1.0))
-    return axis_angle(unit(cross(a, h)), np.clip(now - need, 0.0, MAX_ROLL))
+    """(N, 3, 3): the smallest turn of each foot about its toe (at most MAX_ROLL) that brings the ankle within
+    `reach` of the hip (the runtime's `toe_roll`); identity where it is within reach already."""
+    reach = np.broadcast_to(reach, ankle.shape[:-1])
+    out = np.broadcast_to(np.eye(3), ankle.shape[:-1] + (3, 3)).copy()
+    for i in np.flatnonzero(norm(hip - ankle) > reach):     # the few stretched legs only
+        out[i] = _RT.toe_roll(ankle[i] - toe[i], hip[i] - toe[i], float(reach[i]), MAX_ROLL)
+    return out
 
 
 @dataclass(frozen=True)
