@@ -40,3 +40,32 @@ def test_merge_refuses_modules_of_another_prior(tiny_model):
         merge_stages(copy.deepcopy(tiny_model), other, ("hsi",))
     with pytest.raises(RemogenError, match="no trained hhi"):
         merge_stages(copy.deepcopy(tiny_model), _trained(tiny_model, "hsi", 0.5), ("hhi",))
+
+
+def _decoder_trained(model, value: float):
+    m = copy.deepcopy(model)
+    for p in m.vae.decoder_parts().parameters():
+        p.data.fill_(value)
+    m.meta = dict(m.meta, stages={**m.meta.get("stages", {}), "decoder": {"steps": 5}})
+    return m
+
+
+def test_merge_joins_a_decoder_trained_beside_the_prior(tiny_model):
+    prior = copy.deepcopy(tiny_model)
+    next(prior.denoiser.parameters()).data.add_(1.0)       # the prior trained on in its own folder
+    decoder = _decoder_trained(tiny_model, 0.75)
+    merged = merge_stages(copy.deepcopy(prior), decoder, ("decoder",))
+    assert all(torch.all(p == 0.75) for p in merged.vae.decoder_parts().parameters())
+    assert torch.equal(merged.vae.in_proj.weight, tiny_model.vae.in_proj.weight)   # the encoder kept
+    assert all(torch.equal(a, b) for a, b in zip(merged.denoiser.parameters(), prior.denoiser.parameters()))
+    assert merged.meta["stages"]["decoder"] == {"steps": 5}
+
+
+def test_merge_refuses_a_decoder_of_another_encoder_or_beside_a_module(tiny_model):
+    other = _decoder_trained(tiny_model, 0.75)
+    other.vae.in_proj.weight.data.add_(1.0)
+    with pytest.raises(RemogenError, match="different encoder"):
+        merge_stages(copy.deepcopy(tiny_model), other, ("decoder",))
+    both = _trained(_decoder_trained(tiny_model, 0.75), "hsi", 0.5)
+    with pytest.raises(RemogenError, match="on its own"):
+        merge_stages(copy.deepcopy(tiny_model), both, ("decoder", "hsi"))

@@ -3,7 +3,8 @@
 HHI and HSI each train on the frozen prior alone, so both can start from the same prior file and train at the same
 time in two folders (on one GPU, or two machines). This writes BASE with OTHER's module for each --take stage and its
 training record. It refuses files whose VAE, statistics or prior differ: a module only fits the prior it was
-trained on.
+trained on. The decoder stage trains the VAE's decoder on the frozen encoder, which is all the prior reads, so a
+decoder trained beside the prior joins it with --take decoder (the two files must share statistics and encoder).
 """
 from __future__ import annotations
 
@@ -18,21 +19,34 @@ from ..errors import RemogenError
 from ..model import ReMoGenModel
 from .stages import trainable_module
 
-MERGEABLE = ("hhi", "hsi")
-SHARED = ("stats", "vae", "denoiser")   # what both files must hold identically
+MERGEABLE = ("hhi", "hsi", "decoder")
+SHARED = ("stats", "vae", "denoiser")   # what both files must hold identically to join an interaction module
+SHARED_FOR_DECODER = ("stats", "encoder")   # ... and to join a decoder
+
+
+def _weights(model: ReMoGenModel, part: str) -> dict[str, torch.Tensor]:
+    if part != "encoder":
+        return getattr(model, part).state_dict()
+    decoder = {id(p) for p in model.vae.decoder_parts().parameters()}
+    return {name: p.detach() for name, p in model.vae.named_parameters() if id(p) not in decoder}
 
 
 def merge_stages(base: ReMoGenModel, other: ReMoGenModel, take: tuple[str, ...]) -> ReMoGenModel:
     """`base` with `other`'s modules of the stages in `take` (and their meta["stages"] entries); base is changed."""
-    for part in SHARED:
-        mine, theirs = getattr(base, part).state_dict(), getattr(other, part).state_dict()
-        if mine.keys() != theirs.keys() or any(not torch.equal(mine[k], theirs[k]) for k in mine):
-            raise RemogenError(f"the two files hold different {part} weights: merge only stages trained from the "
-                               "same prior file")
-    stages = dict(base.meta.get("stages", {}))
     for stage in take:
         if stage not in MERGEABLE:
-            raise RemogenError(f"--take {stage}: only {', '.join(MERGEABLE)} train on the prior alone")
+            raise RemogenError(f"--take {stage}: only {', '.join(MERGEABLE)} train beside another stage")
+    if "decoder" in take and len(set(take)) > 1:
+        raise RemogenError("--take decoder changes the VAE the interaction modules were trained with: join the decoder "
+                           "on its own, then the modules from files that hold it")
+    shared = SHARED if set(take) - {"decoder"} else SHARED_FOR_DECODER
+    for part in shared:
+        mine, theirs = _weights(base, part), _weights(other, part)
+        if mine.keys() != theirs.keys() or any(not torch.equal(mine[k], theirs[k]) for k in mine):
+            raise RemogenError(f"the two files hold different {part} weights: merge only stages trained from the "
+                               "same model file")
+    stages = dict(base.meta.get("stages", {}))
+    for stage in take:
         record = other.meta.get("stages", {}).get(stage)
         if record is None:
             raise RemogenError(f"the second file has no trained {stage} stage; train it first")
