@@ -69,3 +69,7 @@ def test_merge_refuses_a_decoder_of_another_encoder_or_beside_a_module(tiny_mode
     both = _trained(_decoder_trained(tiny_model, 0.75), "hsi", 0.5)
     with pytest.raises(RemogenError, match="on its own"):
         merge_stages(copy.deepcopy(tiny_model), both, ("decoder", "hsi"))
+    with_fwsr = copy.deepcopy(tiny_model)
+    with_fwsr.meta = dict(with_fwsr.meta, stages={**with_fwsr.meta.get("stages", {}), "fwsr": {"steps": 3}})
+    with pytest.raises(RemogenError, match="FWSR"):
+        merge_stages(with_fwsr, _decoder_trained(tiny_model, 0.75), ("decoder",))

@@ -4,7 +4,8 @@ HHI and HSI each train on the frozen prior alone, so both can start from the sam
 time in two folders (on one GPU, or two machines). This writes BASE with OTHER's module for each --take stage and its
 training record. It refuses files whose VAE, statistics or prior differ: a module only fits the prior it was
 trained on. The decoder stage trains the VAE's decoder on the frozen encoder, which is all the prior reads, so a
-decoder trained beside the prior joins it with --take decoder (the two files must share statistics and encoder).
+decoder trained beside the prior joins it with --take decoder (the two files must share statistics and encoder, and
+the first must hold no trained FWSR, which stores its decoder's sensitivity).
 """
 from __future__ import annotations
 
@@ -39,6 +40,9 @@ def merge_stages(base: ReMoGenModel, other: ReMoGenModel, take: tuple[str, ...])
     if "decoder" in take and len(set(take)) > 1:
         raise RemogenError("--take decoder changes the VAE the interaction modules were trained with: join the decoder "
                            "on its own, then the modules from files that hold it")
+    if "decoder" in take and "fwsr" in base.meta.get("stages", {}):
+        raise RemogenError("the first file's FWSR stage holds the sensitivity of the decoder it was trained with: join "
+                           "the decoder to a file without FWSR, then train FWSR on the result")
     shared = SHARED if set(take) - {"decoder"} else SHARED_FOR_DECODER
     for part in shared:
         mine, theirs = _weights(base, part), _weights(other, part)
