@@ -11,7 +11,7 @@
 # (CONFIG_B's evaluation), bench.jsonl (the default and paper networks' GPU latency) and logs.tgz (every stage's log
 # and a timeline). FWSR reads the HHI module only, so it trains after HHI while HSI, whose set-up is the slowest
 # (about 2 minutes), still trains. DEV=cpu runs it without a GPU; WORK sets the scratch folder (default
-# /tmp/remogen_side_by_side); DEADLINE (seconds from the start) bounds CONFIG_B's evaluation.
+# /tmp/remogen_side_by_side, emptied first); DEADLINE (seconds from the start) bounds CONFIG_B's evaluation.
 set -u
 LIB=$1; O=$2; CA=$3; CB=$4; S=$5; DEV=${DEV:-auto}; DEADLINE=${DEADLINE:-565}
 W=${WORK:-/tmp/remogen_side_by_side}; rm -rf $W; mkdir -p $W/logs $O
@@ -35,6 +35,8 @@ run_stage() {  # run_stage NAME STAGE DIR CONFIG MINUTES WORKERS [extra...]
   local rc=$?
   stamp "end $name rc=$rc $(grep -a "of .* steps" $W/logs/$name.txt | tail -1)"
 }
+# The minutes and worker counts below share about nine minutes and 16 CPU cores between the two tracks; HSI gets
+# more minutes than HHI because its set-up takes longer and the FWSR stage follows HHI meanwhile.
 track() {  # track X CONFIG FULL (1: decoder and FWSR too)
   local X=$1 C=$2 FULL=$3
   run_stage ${X}_vae vae $W/$X $C 1.0 6 --batch 512 --lr 2e-4 --steps 200000
@@ -74,5 +76,5 @@ if [ "$DEV" != cpu ]; then
 fi
 stamp "bench done"
 track A $CA 1 &
-track P $CB 0 &
+track B $CB 0 &
 wait
