@@ -154,14 +154,18 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                      "non_commercial": "bandai" in sources or bool(meta.get("non_commercial", False))})
         return meta
 
+    def with_own_sensitivity(m: ReMoGenModel) -> ReMoGenModel:
+        """FWSR's damping reads the decoder's sensitivity: a decoder-stage file (snapshot or final) measures its own
+        decoder's instead of keeping the starting file's. `m` on the CPU."""
+        if stage == "decoder":
+            decoder_sensitivity(m, lib, seed)
+        return m
+
     def save_snapshot() -> None:
         ema.swap()
         try:
-            snap = model
-            if stage == "decoder":   # FWSR's damping reads the decoder's sensitivity: each snapshot measures its own
-                snap = copy.deepcopy(model).cpu()
-                decoder_sensitivity(snap, lib, seed)
-            save_model(snap, out / "snapshots" / f"{stage}_{step:06d}.pt",
+            snap = copy.deepcopy(model).cpu() if stage == "decoder" else model   # training goes on where it runs
+            save_model(with_own_sensitivity(snap), out / "snapshots" / f"{stage}_{step:06d}.pt",
                        meta=stage_meta(step, wall + time.time() - t_start))
         finally:
             ema.swap()
@@ -218,9 +222,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     if rank == 0:
         ema.swap()
         model.eval()
-        model.cpu()   # the model file holds CPU tensors whatever trained it
-        if stage == "decoder":     # FWSR's damping reads the decoder's sensitivity: measure the new decoder's
-            decoder_sensitivity(model, lib, seed)
+        with_own_sensitivity(model.cpu())   # the model file holds CPU tensors whatever trained it
         model.meta = stage_meta(step, wall + time.time() - t_start)
         save_model(model, model_path)
         model.to(device)
