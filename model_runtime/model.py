@@ -8,6 +8,7 @@ from torch import nn
 
 from .config import ModelConfig
 from .diffusion import CosineSchedule
+from .errors import DEFAULT_FINAL_GUIDANCE_SHARE
 from .features import FeatureStats
 from .nets.denoiser import LatentDenoiser
 from .nets.fwsr import FrameRefiner
@@ -82,6 +83,15 @@ def _per_row(values: list[float], n: int, dtype: torch.dtype, device: torch.devi
     return torch.tensor(values, dtype=dtype, device=device).repeat(n).view(-1, 1, 1)
 
 
+def final_step_guidance(guidance: float | list[float], share: float) -> float | list[float]:
+    """The guidance of the last denoising step: `share` of each scale's push past the conditional pass (1)."""
+    if share == 1.0:             # the scales themselves, bit for bit (1 + (g - 1) can round)
+        return guidance
+    if isinstance(guidance, (int, float)):
+        return 1.0 + (float(guidance) - 1.0) * share
+    return [1.0 + (float(g) - 1.0) * share for g in guidance]
+
+
 class ReMoGenModel(nn.Module):
     fps = 10
 
@@ -107,6 +117,8 @@ class ReMoGenModel(nn.Module):
         self.meta: dict = {}
         self.diffusion_dtype = torch.float32
         self._int8 = False   # the denoiser's linears were swapped for quantised ones (set_precision("int8"))
+        # how much guidance the last denoising step keeps (errors.DEFAULT_FINAL_GUIDANCE_SHARE says why)
+        self.final_guidance_share = DEFAULT_FINAL_GUIDANCE_SHARE
 
     def set_precision(self, precision: str) -> "ReMoGenModel":
         """"fp32" (default), "bf16" or "int8" for the diffusion networks. Inference only.
@@ -259,7 +271,8 @@ class ReMoGenModel(nn.Module):
     def sample_latent(self, hist: torch.Tensor, text_emb: torch.Tensor, contexts: Contexts,
                       alpha: dict[str, float], guidance: float, generator: torch.Generator) -> torch.Tensor:
         """Full reverse diffusion for one segment (all steps at once)."""
-        job = DiffusionJob(self, hist, text_emb, contexts, alpha, guidance, generator)
+        job = DiffusionJob(self, hist, text_emb, contexts, alpha, guidance, generator,
+                           final_guidance_share=self.final_guidance_share)
         job.advance(self.cfg.diffusion_steps)
         return job.result
 
@@ -304,14 +317,15 @@ class DiffusionJob:
     result in full, where earlier ones are partly undone by the denoising that follows them.
 
     A group of egos is one job: one alpha dict, guidance and generator per row (each row then draws its
-    noise from its own generator, exactly as it would alone).
+    noise from its own generator, exactly as it would alone). The last denoising step takes the guidance
+    eased by `final_guidance_share` (`final_step_guidance`).
     """
 
     def __init__(self, model: ReMoGenModel, hist: torch.Tensor, text_emb: torch.Tensor, contexts: Contexts,
                  alpha: dict[str, float] | list[dict[str, float]], guidance: float | list[float],
                  generator: torch.Generator | list[torch.Generator] | NoiseDraws,
                  steer: Callable[[torch.Tensor], torch.Tensor] | None = None, steered_steps: int = 0,
-                 final_steers: int = 0) -> None:
+                 final_steers: int = 0, final_guidance_share: float | None = None) -> None:
         self.model, self.hist, self.text_emb, self.contexts = model, hist, text_emb, contexts
         self.steer = steer
         self.steered_steps = steered_steps if steer is not None else 0
@@ -319,6 +333,8 @@ class DiffusionJob:
         self._cache: dict = {}
         self.alpha = dict(alpha) if isinstance(alpha, dict) else [dict(a) for a in alpha]
         self.guidance = float(guidance) if isinstance(guidance, (int, float)) else [float(g) for g in guidance]
+        share = model.final_guidance_share if final_guidance_share is None else final_guidance_share
+        self.final_guidance = final_step_guidance(self.guidance, share)
         self.gen = generator
         cfg = model.cfg
         shape = (hist.shape[0], cfg.latent_tokens, cfg.latent_dim)
@@ -357,8 +373,9 @@ class DiffusionJob:
                 self._clean = self.steer(self._clean)
                 self._steers_left -= 1
             else:
+                guidance = self.final_guidance if self.t == 0 else self.guidance
                 x0 = self.model.predict_x0(self.z, self.t, self.hist, self.text_emb, self.contexts,
-                                           self.alpha, self.guidance, self._cache)
+                                           self.alpha, guidance, self._cache)
                 if self.t < self.steered_steps:
                     x0 = self.steer(x0)
                 if self.t == 0:

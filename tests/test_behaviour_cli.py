@@ -1,4 +1,5 @@
-"""The behaviour suite's command line: what --prior-only, --no-control, --no-fwsr and --no-cleanup roll out."""
+"""The behaviour suite's command line: what --prior-only, --no-control, --no-fwsr, --no-cleanup and
+--final-guidance-share roll out."""
 import json
 
 from model_runtime.behaviour.__main__ import main
@@ -66,3 +67,11 @@ def test_a_bad_control_setting_is_one_line_before_any_rollout(capsys):
         assert stop.value.code == 2
         err = capsys.readouterr().err.strip().splitlines()[-1]
         assert words in err, err
+
+
+def test_the_final_guidance_share_is_recorded_and_one_outside_0_to_1_refused(capsys):
+    assert _report(capsys, "--final-guidance-share", "0.5")["final_guidance_share"] == 0.5
+    assert main(["--families", "walk_forward", "--episodes", "1", "--final-guidance-share", "1.5"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert "final guidance share must be a number in 0..1" in captured.err.strip().splitlines()[-1]

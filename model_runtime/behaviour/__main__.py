@@ -7,7 +7,7 @@ import sys
 
 import numpy as np
 
-from ..errors import DEFAULT_GUIDANCE
+from ..errors import DEFAULT_FINAL_GUIDANCE_SHARE, DEFAULT_GUIDANCE
 from .control_overrides import control_config_from
 
 
@@ -60,6 +60,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--families", nargs="+", choices=FAMILIES, default=list(FAMILIES))
     ap.add_argument("--episodes", type=int, default=EPISODES_PER_FAMILY, help="episodes per family")
     ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE)
+    ap.add_argument("--final-guidance-share", type=float, default=DEFAULT_FINAL_GUIDANCE_SHARE,
+                    help="share of the guidance the last denoising step keeps (1: full guidance on every step)")
     ap.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     ap.add_argument("--no-control", action="store_true",
                     help="roll out without test-time control: what the model has learned by itself")
@@ -98,11 +100,13 @@ def main(argv: list[str] | None = None) -> int:
     import torch
 
     from ..checkpoint import load_model
+    from ..checks import check_final_guidance_share
     from ..errors import RemogenError
     from .suite import run_suite
     torch.set_num_threads(args.threads)
     try:
         model = load_model(args.model)
+        model.final_guidance_share = check_final_guidance_share(args.final_guidance_share)
         library = None
         if args.library:
             from ..data.library import ClipLibrary
@@ -118,6 +122,7 @@ def main(argv: list[str] | None = None) -> int:
                        library=library, diversity_seeds=args.diversity_seeds if args.diversity else 0,
                        **({"alphas": tuple(alphas)} if alphas else {}), control_config=control_config, **switches)
     report.update(switches)
+    report["final_guidance_share"] = model.final_guidance_share
     if args.control_set:
         report["control_config"] = dict(kv.split("=", 1) for kv in args.control_set)
     if args.prior_only:

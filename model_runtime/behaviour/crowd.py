@@ -29,8 +29,8 @@ from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
-from ..checks import check_guidance
-from ..errors import DEFAULT_GUIDANCE, InputError
+from ..checks import check_final_guidance_share, check_guidance
+from ..errors import DEFAULT_FINAL_GUIDANCE_SHARE, DEFAULT_GUIDANCE, InputError
 from .control_overrides import control_config_from
 from .metrics import GLIDE_SPEED, finite_mean, min_joint_clearance, peak_pelvis_speed
 from .scenarios import EPISODES_PER_FAMILY, SPLIT_SEEDS, WALK_TEXT
@@ -177,6 +177,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE,
                     help=f"text guidance of every ego (the runtime's default {DEFAULT_GUIDANCE:g})")
+    ap.add_argument("--final-guidance-share", type=float, default=DEFAULT_FINAL_GUIDANCE_SHARE,
+                    help="share of the guidance the last denoising step keeps (1: full guidance on every step)")
     ap.add_argument("--control-set", action="append", default=[], metavar="NAME=VALUE",
                     help="override one test-time control setting (a field of model_runtime.ControlConfig); "
                          "repeatable. For choosing settings on the val split")
@@ -186,7 +188,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --episodes must be at least 1, got {args.episodes}", file=sys.stderr)
         return 2
     try:
-        check_guidance(args.guidance)      # the runtime's own rule, before any model loads
+        check_guidance(args.guidance)      # the runtime's own rules, before any model loads
+        check_final_guidance_share(args.final_guidance_share)
     except InputError as exc:
         print(f"error: --{exc}", file=sys.stderr)
         return 2
@@ -202,6 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(args.threads)
     try:
         model = load_model(args.model) if args.model else load_model()
+        model.final_guidance_share = args.final_guidance_share
     except RemogenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -209,6 +213,7 @@ def main(argv: list[str] | None = None) -> int:
                        progress=lambda m: print(m, file=sys.stderr, flush=True), guidance=args.guidance,
                        control_config=control_config)
     report["control_set"] = list(args.control_set)
+    report["final_guidance_share"] = model.final_guidance_share
     for key in (k for k in report if k.startswith("alpha=")):
         s = report[key]
         print(f"{args.split} crowd {key}: {s['percent_keep_10cm']:.1f} % of {s['episodes']} episodes keep "
