@@ -120,6 +120,16 @@ class ReMoGenModel(nn.Module):
         # how much guidance the last denoising step keeps (errors.DEFAULT_FINAL_GUIDANCE_SHARE says why)
         self.final_guidance_share = DEFAULT_FINAL_GUIDANCE_SHARE
 
+    @property
+    def final_guidance_share(self) -> float:
+        """The share of the guidance's push the last denoising step keeps (final_step_guidance), 0..1."""
+        return self._final_guidance_share
+
+    @final_guidance_share.setter
+    def final_guidance_share(self, value: float) -> None:
+        from .checks import check_final_guidance_share    # checks imports this module
+        self._final_guidance_share = check_final_guidance_share(value)
+
     def set_precision(self, precision: str) -> "ReMoGenModel":
         """"fp32" (default), "bf16" or "int8" for the diffusion networks. Inference only.
 

@@ -87,3 +87,10 @@ def test_sessions_follow_the_models_share(tiny_model):
 def test_a_share_outside_zero_to_one_is_refused(bad):
     with pytest.raises(InputError, match="final guidance share must be a number in 0..1"):
         check_final_guidance_share(bad)
+
+
+def test_the_models_share_refuses_a_bad_value_and_keeps_its_own(tiny_model):
+    before = tiny_model.final_guidance_share
+    with pytest.raises(InputError, match="final guidance share"):
+        tiny_model.final_guidance_share = 1.5
+    assert tiny_model.final_guidance_share == before
