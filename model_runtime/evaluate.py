@@ -40,7 +40,6 @@ from typing import Any, Sequence
 import numpy as np
 import torch
 
-from .checks import check_final_guidance_share
 from .cli_help import HelpFormatter
 from .errors import DEFAULT_FINAL_GUIDANCE_SHARE, DEFAULT_GUIDANCE, RemogenError
 from .evaluation.plots import plot_reaction_strip, plot_training_curves
@@ -185,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         lib = load_library(args.data, args.library)
         model = load_model(args.model)
-        model.final_guidance_share = check_final_guidance_share(args.final_guidance_share)
+        model.final_guidance_share = args.final_guidance_share     # the model checks it
         model.meta.setdefault("path", str(args.model) if args.model else "default")
         res = evaluate(model, lib, clips=args.clips, windows=args.windows, rollouts=args.rollouts,
                        rollout_frames=args.rollout_frames, scenario_frames=args.scenario_frames, seeds=seeds,

@@ -166,3 +166,20 @@ def test_weights_changed_in_place_reach_the_helper(tiny_model, worker):
     assert remote > 0
     np.testing.assert_array_equal(got, want)
     assert not np.array_equal(got, before)      # the change mattered
+
+
+def test_an_eased_last_step_reaches_the_helper(tiny_model, worker):
+    """The model's final guidance share travels with each job: the helper's frames are the caller's, and differ
+    from those at full guidance."""
+    before = tiny_model.final_guidance_share
+    try:
+        tiny_model.final_guidance_share = 0.3
+        plain, _ = _rollout(_group(tiny_model, 1, pipeline=False))
+        piped, remote = _rollout(_group(tiny_model, 1, pipeline=True, worker=worker))
+        tiny_model.final_guidance_share = 1.0
+        full, _ = _rollout(_group(tiny_model, 1, pipeline=False))
+    finally:
+        tiny_model.final_guidance_share = before
+    assert remote > 0
+    assert np.array_equal(plain, piped)
+    assert not np.array_equal(plain, full)

@@ -100,13 +100,12 @@ def main(argv: list[str] | None = None) -> int:
     import torch
 
     from ..checkpoint import load_model
-    from ..checks import check_final_guidance_share
     from ..errors import RemogenError
     from .suite import run_suite
     torch.set_num_threads(args.threads)
     try:
         model = load_model(args.model)
-        model.final_guidance_share = check_final_guidance_share(args.final_guidance_share)
+        model.final_guidance_share = args.final_guidance_share     # the model checks it
         library = None
         if args.library:
             from ..data.library import ClipLibrary
