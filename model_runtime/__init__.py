@@ -34,8 +34,8 @@ os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 
 from .config import ModelConfig
 from .data.bone_maps import BoneMapGuess, guess_bone_map, normalise_name, validate_bone_map
-from .errors import (DEFAULT_FINAL_GUIDANCE_SHARE, DEFAULT_GUIDANCE, MAX_COORD, MAX_GUIDANCE, InputError,
-                     ModelFileError, ModelOutputError, RemogenError)
+from .errors import (DEFAULT_FINAL_GUIDANCE_MIN_SPEED, DEFAULT_FINAL_GUIDANCE_SHARE, DEFAULT_GUIDANCE, MAX_COORD,
+                     MAX_GUIDANCE, InputError, ModelFileError, ModelOutputError, RemogenError)
 from .joints import JOINT_NAMES, NUM_JOINTS, PARENTS, rest_joints_np, standing_pelvis_height
 from .prompt import prompt_warning
 from .quat import continuous_quaternions, matrix_to_quat_np, qconj, qmul, qslerp, rigid_rotation
@@ -52,7 +52,7 @@ _LAZY = {
 
 __all__ = ["load_model", "save_model", "ReactionSession", "ReactionGroup", "EgoSettings", "EgoFrame", "OccupancyGrid", "ModelConfig", "ControlConfig",
            "RemogenError", "InputError", "ModelFileError", "ModelOutputError", "MAX_COORD", "MAX_GUIDANCE",
-           "DEFAULT_GUIDANCE", "DEFAULT_FINAL_GUIDANCE_SHARE",
+           "DEFAULT_GUIDANCE", "DEFAULT_FINAL_GUIDANCE_SHARE", "DEFAULT_FINAL_GUIDANCE_MIN_SPEED",
            "Motion", "load_motion", "prompt_warning",
            "WALK_CLIP", "JOINT_NAMES", "NUM_JOINTS", "PARENTS", "rest_joints_np", "standing_pelvis_height",
            "BoneMapGuess", "guess_bone_map", "normalise_name", "validate_bone_map",

@@ -6,7 +6,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .errors import DEFAULT_FINAL_GUIDANCE_SHARE, DEFAULT_GUIDANCE, MAX_COORD, MAX_GUIDANCE, InputError
+from .errors import (DEFAULT_FINAL_GUIDANCE_MIN_SPEED, DEFAULT_FINAL_GUIDANCE_SHARE, DEFAULT_GUIDANCE, MAX_COORD,
+                     MAX_GUIDANCE, InputError)
 from .model import MODULE_NAMES
 from .skeleton import JOINT_NAMES, NUM_JOINTS
 
@@ -87,6 +88,14 @@ def check_final_guidance_share(value: Any) -> float:
     if not ok or not 0.0 <= float(value) <= 1.0:
         raise InputError(f"final guidance share must be a number in 0..1 (default {DEFAULT_FINAL_GUIDANCE_SHARE:g}), "
                          f"got {value!r}")
+    return float(value)
+
+
+def check_final_guidance_min_speed(value: Any) -> float:
+    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
+    if not ok or not math.isfinite(float(value)) or float(value) < 0.0:
+        raise InputError(f"final guidance min speed must be a finite number of m/s >= 0 "
+                         f"(default {DEFAULT_FINAL_GUIDANCE_MIN_SPEED:g}), got {value!r}")
     return float(value)
 
 

@@ -348,6 +348,7 @@ class ReactionGroup:
         spec = JobSpec(hist_n=torch.cat([c[2] for c in canon]), text_emb=torch.cat([e.text_emb for e in egos]),
                        **self._context_inputs(canon), alpha=[e.alpha for e in egos],
                        guidance=[e.guidance for e in egos], final_guidance_share=self.model.final_guidance_share,
+                       final_guidance_min_speed=self.model.final_guidance_min_speed,
                        targets=self._targets(canon, lead, plans=plans) if self._control else None,
                        control=self._control_config if self._control else None,
                        noise=job_draws(self.model, [e.gen for e in egos], len(egos)))

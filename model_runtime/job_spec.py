@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import torch
 
 from .control import ControlConfig, ControlTargets, LatentSteer, SegmentCosts
-from .errors import DEFAULT_FINAL_GUIDANCE_SHARE
+from .errors import DEFAULT_FINAL_GUIDANCE_MIN_SPEED, DEFAULT_FINAL_GUIDANCE_SHARE
 from .model import DiffusionJob, NoiseDraws, ReMoGenModel
 
 
@@ -32,7 +32,8 @@ class JobSpec:
     noise: NoiseDraws
     targets: list[ControlTargets] | None    # test-time control of each row, None with control off
     control: ControlConfig | None
-    final_guidance_share: float = DEFAULT_FINAL_GUIDANCE_SHARE   # the model's, when the job was fixed
+    final_guidance_share: float = DEFAULT_FINAL_GUIDANCE_SHARE          # the model's, when the job was fixed
+    final_guidance_min_speed: float = DEFAULT_FINAL_GUIDANCE_MIN_SPEED  # likewise
 
     def __getstate__(self) -> dict:
         """Pickled to the helper process: occupancy (0/1 cells) as bytes-sized booleans, a quarter of the bytes
@@ -60,7 +61,8 @@ def build_job(model: ReMoGenModel, spec: JobSpec) -> DiffusionJob:
     return DiffusionJob(model, spec.hist_n, spec.text_emb, contexts, spec.alpha, spec.guidance, spec.noise,
                         steer=steer, steered_steps=cc.steered_steps if cc else 0,
                         final_steers=cc.final_steers if cc else 0,
-                        final_guidance_share=spec.final_guidance_share)
+                        final_guidance_share=spec.final_guidance_share,
+                        final_guidance_min_speed=spec.final_guidance_min_speed)
 
 
 def run_job(model: ReMoGenModel, spec: JobSpec) -> torch.Tensor:

@@ -8,8 +8,8 @@ from torch import nn
 
 from .config import ModelConfig
 from .diffusion import CosineSchedule
-from .errors import DEFAULT_FINAL_GUIDANCE_SHARE
-from .features import FeatureStats
+from .errors import DEFAULT_FINAL_GUIDANCE_MIN_SPEED, DEFAULT_FINAL_GUIDANCE_SHARE
+from .features import ROOT_T, FeatureStats
 from .nets.denoiser import LatentDenoiser
 from .nets.fwsr import FrameRefiner
 from .nets.interaction import MetaInteractionModule, OthersEncoder, SceneEncoder, compose_residuals
@@ -83,13 +83,23 @@ def _per_row(values: list[float], n: int, dtype: torch.dtype, device: torch.devi
     return torch.tensor(values, dtype=dtype, device=device).repeat(n).view(-1, 1, 1)
 
 
-def final_step_guidance(guidance: float | list[float], share: float) -> float | list[float]:
-    """The guidance of the last denoising step: `share` of each scale's push past the conditional pass (1)."""
-    if share == 1.0:             # the scales themselves, bit for bit (1 + (g - 1) can round)
-        return guidance
-    if isinstance(guidance, (int, float)):
-        return 1.0 + (float(guidance) - 1.0) * share
-    return [1.0 + (float(g) - 1.0) * share for g in guidance]
+def final_step_guidance(guidance: float | list[float], share: float,
+                        eased: list[bool] | None = None) -> float | list[float]:
+    """The guidance of the last denoising step: `share` of each scale's push past the conditional pass (1), for
+    the rows `eased` marks (all when None); the others keep their scale. One scale stays one scale when the rows
+    agree."""
+    if share == 1.0 or (eased is not None and not any(eased)):
+        return guidance          # the scales themselves, bit for bit (1 + (g - 1) can round)
+    rows = [float(guidance)] * len(eased or [0]) if isinstance(guidance, (int, float)) else [float(g) for g in guidance]
+    marks = eased if eased is not None else [True] * len(rows)
+    out = [1.0 + (g - 1.0) * share if m else g for g, m in zip(rows, marks)]
+    return out[0] if isinstance(guidance, (int, float)) and len(set(out)) == 1 else out
+
+
+def history_speed(model: "ReMoGenModel", hist_n: torch.Tensor) -> torch.Tensor:
+    """(B,) horizontal pelvis speed (m/s) from the first to the last frame of normalised histories (B, H, D)."""
+    root = model.stats.denormalize(hist_n)[..., ROOT_T]
+    return (root[:, -1, :2] - root[:, 0, :2]).norm(dim=-1) * model.fps / max(root.shape[1] - 1, 1)
 
 
 class ReMoGenModel(nn.Module):
@@ -117,8 +127,9 @@ class ReMoGenModel(nn.Module):
         self.meta: dict = {}
         self.diffusion_dtype = torch.float32
         self._int8 = False   # the denoiser's linears were swapped for quantised ones (set_precision("int8"))
-        # how much guidance the last denoising step keeps (errors.DEFAULT_FINAL_GUIDANCE_SHARE says why)
+        # how much guidance the last denoising step keeps, and for which egos (errors.py says why)
         self.final_guidance_share = DEFAULT_FINAL_GUIDANCE_SHARE
+        self.final_guidance_min_speed = DEFAULT_FINAL_GUIDANCE_MIN_SPEED
 
     @property
     def final_guidance_share(self) -> float:
@@ -129,6 +140,16 @@ class ReMoGenModel(nn.Module):
     def final_guidance_share(self, value: float) -> None:
         from .checks import check_final_guidance_share    # checks imports this module
         self._final_guidance_share = check_final_guidance_share(value)
+
+    @property
+    def final_guidance_min_speed(self) -> float:
+        """The last step's guidance is eased only for egos whose history moves at least this fast (m/s)."""
+        return self._final_guidance_min_speed
+
+    @final_guidance_min_speed.setter
+    def final_guidance_min_speed(self, value: float) -> None:
+        from .checks import check_final_guidance_min_speed    # checks imports this module
+        self._final_guidance_min_speed = check_final_guidance_min_speed(value)
 
     def set_precision(self, precision: str) -> "ReMoGenModel":
         """"fp32" (default), "bf16" or "int8" for the diffusion networks. Inference only.
@@ -282,7 +303,8 @@ class ReMoGenModel(nn.Module):
                       alpha: dict[str, float], guidance: float, generator: torch.Generator) -> torch.Tensor:
         """Full reverse diffusion for one segment (all steps at once)."""
         job = DiffusionJob(self, hist, text_emb, contexts, alpha, guidance, generator,
-                           final_guidance_share=self.final_guidance_share)
+                           final_guidance_share=self.final_guidance_share,
+                           final_guidance_min_speed=self.final_guidance_min_speed)
         job.advance(self.cfg.diffusion_steps)
         return job.result
 
@@ -328,14 +350,16 @@ class DiffusionJob:
 
     A group of egos is one job: one alpha dict, guidance and generator per row (each row then draws its
     noise from its own generator, exactly as it would alone). The last denoising step takes the guidance
-    eased by `final_guidance_share` (`final_step_guidance`).
+    eased by `final_guidance_share` (`final_step_guidance`) in the rows whose history moves at least
+    `final_guidance_min_speed`; the model's settings stand in for those not given.
     """
 
     def __init__(self, model: ReMoGenModel, hist: torch.Tensor, text_emb: torch.Tensor, contexts: Contexts,
                  alpha: dict[str, float] | list[dict[str, float]], guidance: float | list[float],
                  generator: torch.Generator | list[torch.Generator] | NoiseDraws,
                  steer: Callable[[torch.Tensor], torch.Tensor] | None = None, steered_steps: int = 0,
-                 final_steers: int = 0, final_guidance_share: float | None = None) -> None:
+                 final_steers: int = 0, final_guidance_share: float | None = None,
+                 final_guidance_min_speed: float | None = None) -> None:
         self.model, self.hist, self.text_emb, self.contexts = model, hist, text_emb, contexts
         self.steer = steer
         self.steered_steps = steered_steps if steer is not None else 0
@@ -344,7 +368,9 @@ class DiffusionJob:
         self.alpha = dict(alpha) if isinstance(alpha, dict) else [dict(a) for a in alpha]
         self.guidance = float(guidance) if isinstance(guidance, (int, float)) else [float(g) for g in guidance]
         share = model.final_guidance_share if final_guidance_share is None else final_guidance_share
-        self.final_guidance = final_step_guidance(self.guidance, share)
+        min_speed = model.final_guidance_min_speed if final_guidance_min_speed is None else final_guidance_min_speed
+        eased = None if share == 1.0 else (history_speed(model, hist) >= min_speed).tolist()
+        self.final_guidance = final_step_guidance(self.guidance, share, eased)
         self.gen = generator
         cfg = model.cfg
         shape = (hist.shape[0], cfg.latent_tokens, cfg.latent_dim)

@@ -169,17 +169,18 @@ def test_weights_changed_in_place_reach_the_helper(tiny_model, worker):
 
 
 def test_an_eased_last_step_reaches_the_helper(tiny_model, worker):
-    """The model's final guidance share travels with each job: the helper's frames are the caller's, and differ
+    """The model's final guidance settings travel with each job: the helper's frames are the caller's, and differ
     from those at full guidance."""
-    before = tiny_model.final_guidance_share
+    before = tiny_model.final_guidance_share, tiny_model.final_guidance_min_speed
     try:
+        tiny_model.final_guidance_min_speed = 0.0
         tiny_model.final_guidance_share = 0.3
         plain, _ = _rollout(_group(tiny_model, 1, pipeline=False))
         piped, remote = _rollout(_group(tiny_model, 1, pipeline=True, worker=worker))
         tiny_model.final_guidance_share = 1.0
         full, _ = _rollout(_group(tiny_model, 1, pipeline=False))
     finally:
-        tiny_model.final_guidance_share = before
+        tiny_model.final_guidance_share, tiny_model.final_guidance_min_speed = before
     assert remote > 0
     assert np.array_equal(plain, piped)
     assert not np.array_equal(plain, full)

@@ -29,8 +29,8 @@ from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
-from ..checks import check_final_guidance_share, check_guidance
-from ..errors import DEFAULT_FINAL_GUIDANCE_SHARE, DEFAULT_GUIDANCE, InputError
+from ..checks import check_final_guidance_min_speed, check_final_guidance_share, check_guidance
+from ..errors import DEFAULT_FINAL_GUIDANCE_MIN_SPEED, DEFAULT_FINAL_GUIDANCE_SHARE, DEFAULT_GUIDANCE, InputError
 from .control_overrides import control_config_from
 from .metrics import GLIDE_SPEED, finite_mean, min_joint_clearance, peak_pelvis_speed
 from .scenarios import EPISODES_PER_FAMILY, SPLIT_SEEDS, WALK_TEXT
@@ -179,6 +179,8 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"text guidance of every ego (the runtime's default {DEFAULT_GUIDANCE:g})")
     ap.add_argument("--final-guidance-share", type=float, default=DEFAULT_FINAL_GUIDANCE_SHARE,
                     help="share of the guidance the last denoising step keeps (1: full guidance on every step)")
+    ap.add_argument("--final-guidance-min-speed", type=float, default=DEFAULT_FINAL_GUIDANCE_MIN_SPEED,
+                    help="ease the last step only for an ego whose history moves at least this fast (m/s)")
     ap.add_argument("--control-set", action="append", default=[], metavar="NAME=VALUE",
                     help="override one test-time control setting (a field of model_runtime.ControlConfig); "
                          "repeatable. For choosing settings on the val split")
@@ -190,6 +192,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         check_guidance(args.guidance)      # the runtime's own rules, before any model loads
         check_final_guidance_share(args.final_guidance_share)
+        check_final_guidance_min_speed(args.final_guidance_min_speed)
     except InputError as exc:
         print(f"error: --{exc}", file=sys.stderr)
         return 2
@@ -206,6 +209,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         model = load_model(args.model) if args.model else load_model()
         model.final_guidance_share = args.final_guidance_share
+        model.final_guidance_min_speed = args.final_guidance_min_speed
     except RemogenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -214,6 +218,7 @@ def main(argv: list[str] | None = None) -> int:
                        control_config=control_config)
     report["control_set"] = list(args.control_set)
     report["final_guidance_share"] = model.final_guidance_share
+    report["final_guidance_min_speed"] = model.final_guidance_min_speed
     for key in (k for k in report if k.startswith("alpha=")):
         s = report[key]
         print(f"{args.split} crowd {key}: {s['percent_keep_10cm']:.1f} % of {s['episodes']} episodes keep "
