@@ -90,10 +90,11 @@ def final_step_guidance(guidance: float | list[float], share: float,
     agree."""
     if share == 1.0 or (eased is not None and not any(eased)):
         return guidance          # the scales themselves, bit for bit (1 + (g - 1) can round)
-    rows = [float(guidance)] * len(eased or [0]) if isinstance(guidance, (int, float)) else [float(g) for g in guidance]
+    one = isinstance(guidance, (int, float))
+    rows = [float(g) for g in guidance] if not one else [float(guidance)] * (len(eased) if eased is not None else 1)
     marks = eased if eased is not None else [True] * len(rows)
     out = [1.0 + (g - 1.0) * share if m else g for g, m in zip(rows, marks)]
-    return out[0] if isinstance(guidance, (int, float)) and len(set(out)) == 1 else out
+    return out[0] if one and len(set(out)) == 1 else out
 
 
 def history_speed(model: "ReMoGenModel", hist_n: torch.Tensor) -> torch.Tensor:
