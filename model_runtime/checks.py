@@ -8,7 +8,7 @@ import numpy as np
 
 from .errors import (DEFAULT_FINAL_GUIDANCE_MIN_SPEED, DEFAULT_FINAL_GUIDANCE_SHARE, DEFAULT_GUIDANCE, MAX_COORD,
                      MAX_GUIDANCE, InputError)
-from .model import MODULE_NAMES
+from .config import MODULE_NAMES
 from .skeleton import JOINT_NAMES, NUM_JOINTS
 
 
@@ -50,6 +50,11 @@ def check_point(name: str, v: Any) -> np.ndarray | None:
     return p
 
 
+def _is_real(value: Any) -> bool:
+    """An int or float (NumPy's too), not a bool (an int in Python, but never a meant number)."""
+    return not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
+
+
 def check_seed(seed: Any) -> int:
     # bool is an int in Python but never a meant seed; floats would be truncated silently
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2 ** 64:
@@ -68,32 +73,28 @@ def check_alpha(alpha: Any) -> dict[str, float]:
     out = {}
     for k in MODULE_NAMES:
         v = alpha.get(k, 0.0)
-        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not (
-                math.isfinite(v) and v >= 0):
+        if not _is_real(v) or not (math.isfinite(v) and v >= 0):
             raise InputError(f"alpha[{k!r}] must be a finite number >= 0, got {v!r}; e.g. {{'{k}': 1.0}}")
         out[k] = float(v)
     return out
 
 
 def check_guidance(value: Any) -> float:
-    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
-    if not ok or not 0.0 <= float(value) <= MAX_GUIDANCE:
+    if not _is_real(value) or not 0.0 <= float(value) <= MAX_GUIDANCE:
         raise InputError(f"guidance must be a number in 0..{MAX_GUIDANCE:g} (default {DEFAULT_GUIDANCE:g}), "
                          f"got {value!r}")
     return float(value)
 
 
 def check_final_guidance_share(value: Any) -> float:
-    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
-    if not ok or not 0.0 <= float(value) <= 1.0:
+    if not _is_real(value) or not 0.0 <= float(value) <= 1.0:
         raise InputError(f"final guidance share must be a number in 0..1 (default {DEFAULT_FINAL_GUIDANCE_SHARE:g}), "
                          f"got {value!r}")
     return float(value)
 
 
 def check_final_guidance_min_speed(value: Any) -> float:
-    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
-    if not ok or not math.isfinite(float(value)) or float(value) < 0.0:
+    if not _is_real(value) or not math.isfinite(float(value)) or float(value) < 0.0:
         raise InputError(f"final guidance min speed must be a finite number of m/s >= 0 "
                          f"(default {DEFAULT_FINAL_GUIDANCE_MIN_SPEED:g}), got {value!r}")
     return float(value)

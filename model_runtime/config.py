@@ -97,6 +97,11 @@ def _text_problem(t) -> str | None:
     return None
 
 
+# The Meta-Interaction Modules by name: the keys of alpha and of a model's modules (here so the input checks need
+# not import the networks).
+MODULE_NAMES = ("hhi", "hsi")
+
+
 def _is_number(v) -> bool:
     return not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
 

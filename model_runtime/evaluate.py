@@ -40,8 +40,8 @@ from typing import Any, Sequence
 import numpy as np
 import torch
 
-from .cli_help import HelpFormatter
-from .errors import DEFAULT_FINAL_GUIDANCE_MIN_SPEED, DEFAULT_FINAL_GUIDANCE_SHARE, DEFAULT_GUIDANCE, RemogenError
+from .cli_help import HelpFormatter, add_final_guidance_options, set_final_guidance
+from .errors import DEFAULT_GUIDANCE, RemogenError
 from .evaluation.plots import plot_reaction_strip, plot_training_curves
 from .evaluation.rollouts import ALPHA_OFF, ALPHA_ON, box_scenario, evaluate_rollouts, partner_scenario
 from .evaluation.segments import evaluate_segments
@@ -163,10 +163,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenario-frames", type=int, default=60, help="frames per interaction scenario run")
     ap.add_argument("--seeds", default="0,1", help="comma-separated seeds for the scenarios")
     ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE, help="classifier-free guidance scale")
-    ap.add_argument("--final-guidance-share", type=float, default=DEFAULT_FINAL_GUIDANCE_SHARE,
-                    help="share of the guidance the last denoising step keeps (1: full guidance on every step)")
-    ap.add_argument("--final-guidance-min-speed", type=float, default=DEFAULT_FINAL_GUIDANCE_MIN_SPEED,
-                    help="ease the last step only for an ego whose history moves at least this fast (m/s)")
+    add_final_guidance_options(ap)
     ap.add_argument("--threads", type=int, default=1,
                     help="torch threads (1: batch-1 session steps are fastest single-threaded, as in bench)")
     args = ap.parse_args(argv)
@@ -186,8 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         lib = load_library(args.data, args.library)
         model = load_model(args.model)
-        model.final_guidance_share = args.final_guidance_share     # the model checks both
-        model.final_guidance_min_speed = args.final_guidance_min_speed
+        set_final_guidance(model, args)
         model.meta.setdefault("path", str(args.model) if args.model else "default")
         res = evaluate(model, lib, clips=args.clips, windows=args.windows, rollouts=args.rollouts,
                        rollout_frames=args.rollout_frames, scenario_frames=args.scenario_frames, seeds=seeds,

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 import torch
 
 from .control import ControlConfig, ControlTargets, LatentSteer, SegmentCosts
-from .errors import DEFAULT_FINAL_GUIDANCE_MIN_SPEED, DEFAULT_FINAL_GUIDANCE_SHARE
 from .model import DiffusionJob, NoiseDraws, ReMoGenModel
 
 
@@ -32,8 +31,8 @@ class JobSpec:
     noise: NoiseDraws
     targets: list[ControlTargets] | None    # test-time control of each row, None with control off
     control: ControlConfig | None
-    final_guidance_share: float = DEFAULT_FINAL_GUIDANCE_SHARE          # the model's, when the job was fixed
-    final_guidance_min_speed: float = DEFAULT_FINAL_GUIDANCE_MIN_SPEED  # likewise
+    final_guidance_share: float | None = None      # the model's when the job was fixed (None: the runner's)
+    final_guidance_min_speed: float | None = None  # likewise
 
     def __getstate__(self) -> dict:
         """Pickled to the helper process: occupancy (0/1 cells) as bytes-sized booleans, a quarter of the bytes

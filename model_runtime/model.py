@@ -6,7 +6,8 @@ from typing import Callable
 import torch
 from torch import nn
 
-from .config import ModelConfig
+from .checks import Checked, check_final_guidance_min_speed, check_final_guidance_share
+from .config import MODULE_NAMES, ModelConfig
 from .diffusion import CosineSchedule
 from .errors import DEFAULT_FINAL_GUIDANCE_MIN_SPEED, DEFAULT_FINAL_GUIDANCE_SHARE
 from .features import ROOT_T, FeatureStats
@@ -17,7 +18,6 @@ from .nets.vae import MotionVAE
 from .prompt import prompt_warning
 from .text import TextEncoder, build_text_encoder
 
-MODULE_NAMES = ("hhi", "hsi")
 
 
 def non_finite_weight(state_dict: dict) -> str | None:
@@ -132,25 +132,10 @@ class ReMoGenModel(nn.Module):
         self.final_guidance_share = DEFAULT_FINAL_GUIDANCE_SHARE
         self.final_guidance_min_speed = DEFAULT_FINAL_GUIDANCE_MIN_SPEED
 
-    @property
-    def final_guidance_share(self) -> float:
-        """The share of the guidance's push the last denoising step keeps (final_step_guidance), 0..1."""
-        return self._final_guidance_share
-
-    @final_guidance_share.setter
-    def final_guidance_share(self, value: float) -> None:
-        from .checks import check_final_guidance_share    # checks imports this module
-        self._final_guidance_share = check_final_guidance_share(value)
-
-    @property
-    def final_guidance_min_speed(self) -> float:
-        """The last step's guidance is eased only for egos whose history moves at least this fast (m/s)."""
-        return self._final_guidance_min_speed
-
-    @final_guidance_min_speed.setter
-    def final_guidance_min_speed(self, value: float) -> None:
-        from .checks import check_final_guidance_min_speed    # checks imports this module
-        self._final_guidance_min_speed = check_final_guidance_min_speed(value)
+    final_guidance_share = Checked(check_final_guidance_share,
+                                   "The share of the guidance's push the last denoising step keeps, 0..1.")
+    final_guidance_min_speed = Checked(check_final_guidance_min_speed,
+                                       "The last step is eased only for egos whose history moves this fast (m/s).")
 
     def set_precision(self, precision: str) -> "ReMoGenModel":
         """"fp32" (default), "bf16" or "int8" for the diffusion networks. Inference only.

@@ -7,7 +7,7 @@ import sys
 
 import numpy as np
 
-from ..errors import DEFAULT_FINAL_GUIDANCE_MIN_SPEED, DEFAULT_FINAL_GUIDANCE_SHARE, DEFAULT_GUIDANCE
+from ..errors import DEFAULT_GUIDANCE
 from .control_overrides import control_config_from
 
 
@@ -49,7 +49,7 @@ def _print_tables(path: str) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ..cli_help import HelpFormatter
+    from ..cli_help import HelpFormatter, add_final_guidance_options, set_final_guidance
     from .diversity import DIVERSITY_PROMPTS, DIVERSITY_SEEDS
     from .scenarios import EPISODES_PER_FAMILY, FAMILIES
     ap = argparse.ArgumentParser(prog="python -m model_runtime.evaluate --behaviour", description=__doc__,
@@ -60,10 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--families", nargs="+", choices=FAMILIES, default=list(FAMILIES))
     ap.add_argument("--episodes", type=int, default=EPISODES_PER_FAMILY, help="episodes per family")
     ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE)
-    ap.add_argument("--final-guidance-share", type=float, default=DEFAULT_FINAL_GUIDANCE_SHARE,
-                    help="share of the guidance the last denoising step keeps (1: full guidance on every step)")
-    ap.add_argument("--final-guidance-min-speed", type=float, default=DEFAULT_FINAL_GUIDANCE_MIN_SPEED,
-                    help="ease the last step only for an ego whose history moves at least this fast (m/s)")
+    add_final_guidance_options(ap)
     ap.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     ap.add_argument("--no-control", action="store_true",
                     help="roll out without test-time control: what the model has learned by itself")
@@ -107,8 +104,7 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(args.threads)
     try:
         model = load_model(args.model)
-        model.final_guidance_share = args.final_guidance_share     # the model checks both
-        model.final_guidance_min_speed = args.final_guidance_min_speed
+        final_guidance = set_final_guidance(model, args)
         library = None
         if args.library:
             from ..data.library import ClipLibrary
@@ -124,8 +120,7 @@ def main(argv: list[str] | None = None) -> int:
                        library=library, diversity_seeds=args.diversity_seeds if args.diversity else 0,
                        **({"alphas": tuple(alphas)} if alphas else {}), control_config=control_config, **switches)
     report.update(switches)
-    report["final_guidance_share"] = model.final_guidance_share
-    report["final_guidance_min_speed"] = model.final_guidance_min_speed
+    report.update(final_guidance)
     if args.control_set:
         report["control_config"] = dict(kv.split("=", 1) for kv in args.control_set)
     if args.prior_only:

@@ -30,7 +30,8 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 
 from ..checks import check_final_guidance_min_speed, check_final_guidance_share, check_guidance
-from ..errors import DEFAULT_FINAL_GUIDANCE_MIN_SPEED, DEFAULT_FINAL_GUIDANCE_SHARE, DEFAULT_GUIDANCE, InputError
+from ..cli_help import add_final_guidance_options, set_final_guidance
+from ..errors import DEFAULT_GUIDANCE, InputError
 from .control_overrides import control_config_from
 from .metrics import GLIDE_SPEED, finite_mean, min_joint_clearance, peak_pelvis_speed
 from .scenarios import EPISODES_PER_FAMILY, SPLIT_SEEDS, WALK_TEXT
@@ -177,10 +178,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE,
                     help=f"text guidance of every ego (the runtime's default {DEFAULT_GUIDANCE:g})")
-    ap.add_argument("--final-guidance-share", type=float, default=DEFAULT_FINAL_GUIDANCE_SHARE,
-                    help="share of the guidance the last denoising step keeps (1: full guidance on every step)")
-    ap.add_argument("--final-guidance-min-speed", type=float, default=DEFAULT_FINAL_GUIDANCE_MIN_SPEED,
-                    help="ease the last step only for an ego whose history moves at least this fast (m/s)")
+    add_final_guidance_options(ap)
     ap.add_argument("--control-set", action="append", default=[], metavar="NAME=VALUE",
                     help="override one test-time control setting (a field of model_runtime.ControlConfig); "
                          "repeatable. For choosing settings on the val split")
@@ -208,8 +206,7 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(args.threads)
     try:
         model = load_model(args.model) if args.model else load_model()
-        model.final_guidance_share = args.final_guidance_share
-        model.final_guidance_min_speed = args.final_guidance_min_speed
+        final_guidance = set_final_guidance(model, args)
     except RemogenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -217,8 +214,7 @@ def main(argv: list[str] | None = None) -> int:
                        progress=lambda m: print(m, file=sys.stderr, flush=True), guidance=args.guidance,
                        control_config=control_config)
     report["control_set"] = list(args.control_set)
-    report["final_guidance_share"] = model.final_guidance_share
-    report["final_guidance_min_speed"] = model.final_guidance_min_speed
+    report.update(final_guidance)
     for key in (k for k in report if k.startswith("alpha=")):
         s = report[key]
         print(f"{args.split} crowd {key}: {s['percent_keep_10cm']:.1f} % of {s['episodes']} episodes keep "
