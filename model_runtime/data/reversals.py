@@ -33,12 +33,18 @@ MAX_SPEED = 2.0            # m/s: faster is a run or a dash captioned as a walk 
 SOURCE_KINDS = ("", "mirror")   # real clips and their mirrored copies
 
 
-def reversed_caption(caption: str) -> str | None:
-    """REVERSED_CAPTION with the caption's style, or None when the caption is not a plain forward walk."""
+def forward_walk_recaptioned(caption: str, new_head: str) -> str | None:
+    """`new_head` with the caption's style ("a person walks forward, tired" -> "<new_head>, tired"), or None when
+    the caption is not a plain forward walk (FORWARD_WALK_HEADS)."""
     head, style = split_style(caption)
     if head not in FORWARD_WALK_HEADS:
         return None
-    return REVERSED_CAPTION + (f", {style}" if style else "")
+    return new_head + (f", {style}" if style else "")
+
+
+def reversed_caption(caption: str) -> str | None:
+    """REVERSED_CAPTION with the caption's style, or None when the caption is not a plain forward walk."""
+    return forward_walk_recaptioned(caption, REVERSED_CAPTION)
 
 
 def mean_speed(pelvis: np.ndarray, fps: float = FPS) -> float:
@@ -49,6 +55,19 @@ def mean_speed(pelvis: np.ndarray, fps: float = FPS) -> float:
     return float(steps.sum() * fps / (len(pelvis) - 1))
 
 
+def forward_walk_sources(lib: ClipLibrary, clip_ids: list[int], new_head: str):
+    """The plain forward walks among `clip_ids` that copies are made from (real or mirrored, SOURCE_KINDS):
+    yields (clip index, copy number: 0 from a real clip, 1 from a mirrored one, the copy's caption with `new_head`,
+    first frame, end frame)."""
+    for i in clip_ids:
+        kind = derived_kind(lib.names[i])
+        if kind not in SOURCE_KINDS:
+            continue
+        caption = forward_walk_recaptioned(lib.captions[i], new_head)
+        if caption is not None:
+            yield i, int(kind == "mirror"), caption, int(lib.offsets[i]), int(lib.offsets[i + 1])
+
+
 def add_reversals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple[ClipLibrary, list[int]]:
     """A new library: `lib` plus a time-reversed copy of every plain forward walk among `clip_ids` (real or
     mirrored) whose pelvis goes MIN_SPEED-MAX_SPEED m/s. Returns (library, indices of the copies); `lib`'s own
@@ -56,16 +75,9 @@ def add_reversals(lib: ClipLibrary, clip_ids: list[int], seed: int = 0) -> tuple
     same signature."""
     del seed
     copies: list[NewClip] = []
-    for i in clip_ids:
-        kind = derived_kind(lib.names[i])
-        if kind not in SOURCE_KINDS:
-            continue
-        caption = reversed_caption(lib.captions[i])
-        if caption is None:
-            continue
-        a, b = int(lib.offsets[i]), int(lib.offsets[i + 1])
+    for i, number, caption, a, b in forward_walk_sources(lib, clip_ids, REVERSED_CAPTION):
         if not MIN_SPEED <= mean_speed(lib.pelvis[a:b]) <= MAX_SPEED:
             continue
-        name = f"{source_name(lib.names[i])}{DERIVED}reversed{int(kind == 'mirror')}"
+        name = f"{source_name(lib.names[i])}{DERIVED}reversed{number}"
         copies.append(new_clip(lib, i, name, caption, lib.rotations[a:b][::-1].copy(), lib.pelvis[a:b][::-1].copy()))
     return extend_library(lib, copies)

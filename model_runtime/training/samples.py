@@ -26,7 +26,8 @@ from ..data.stretches import split_style
 from ..features import JOINT_DELTA, ROOT_T, FeatureStats, canonicalize, to_canonical, world_points_to_canonical
 from ..skeleton import NUM_JOINTS, forward_kinematics
 from .recipe import (REVERSAL_WEIGHT, SLOW_WALK_CAPTION, SLOW_WALK_HEADS, SLOW_WALK_SHARE, SLOW_WALK_SPEED,
-                     STARTUP_WEIGHT, STILL_CAPTION, STILL_SHARE, STILL_SPEED, STILL_TRAVEL, TURN_ARRIVAL_WEIGHT)
+                     SLOWED_WALK_WEIGHT, STARTUP_WEIGHT, STILL_CAPTION, STILL_SHARE, STILL_SPEED, STILL_TRAVEL,
+                     TURN_ARRIVAL_WEIGHT)
 
 FPS = 10.0
 
@@ -98,7 +99,8 @@ GOAL_SHARE = 0.5          # share of HSI windows drawn among those that reach it
 # windows by frame count; drawn 3x as often so that walking around something is not a rare event.
 SCENE_KIND_WEIGHT = {"detour": 3.0}
 # Derived clips drawn more or less often than their frame count (library.derived_kind -> factor).
-CLIP_KIND_WEIGHT = {"startup": STARTUP_WEIGHT, "reversed": REVERSAL_WEIGHT, "turnarrive": TURN_ARRIVAL_WEIGHT}
+CLIP_KIND_WEIGHT = {"startup": STARTUP_WEIGHT, "reversed": REVERSAL_WEIGHT, "turnarrive": TURN_ARRIVAL_WEIGHT,
+                    "slowed": SLOWED_WALK_WEIGHT}
 
 
 @dataclass

@@ -102,6 +102,12 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         from ..data.reversals import add_reversals
         lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids, add_reversals, seed)
         note(f"{n} reversed copies of forward walks (walking backwards)")
+    if stage in windows.slowed_walk_stages:
+        # forward walks played slower: captions hardly ever say how fast a walk goes (data/slowed_walks.py); after
+        # the reversed copies (none is slowed) and before the start-up copies (none sets off from one)
+        from ..data.slowed_walks import add_slowed_walks
+        lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids, add_slowed_walks, seed)
+        note(f"{n} slowed copies of forward walks (walking slowly)")
     if stage in windows.startup_stages:
         # standing, then setting off: no clip starts from standing, every ego does (data/startups.py)
         from ..data.startups import add_startups
