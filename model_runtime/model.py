@@ -19,7 +19,6 @@ from .prompt import prompt_warning
 from .text import TextEncoder, build_text_encoder
 
 
-
 def non_finite_weight(state_dict: dict) -> str | None:
     """The name of the first floating-point tensor holding NaN or inf, or None."""
     for name, t in state_dict.items():

@@ -17,6 +17,8 @@ style ("a person walks forward, tired" -> "a person walks backwards, tired").
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 
 from .library import DERIVED, ClipLibrary, derived_kind, source_name
@@ -55,7 +57,8 @@ def mean_speed(pelvis: np.ndarray, fps: float = FPS) -> float:
     return float(steps.sum() * fps / (len(pelvis) - 1))
 
 
-def forward_walk_sources(lib: ClipLibrary, clip_ids: list[int], new_head: str):
+def forward_walk_sources(lib: ClipLibrary, clip_ids: list[int],
+                         new_head: str) -> Iterator[tuple[int, int, str, int, int]]:
     """The plain forward walks among `clip_ids` that copies are made from (real or mirrored, SOURCE_KINDS):
     yields (clip index, copy number: 0 from a real clip, 1 from a mirrored one, the copy's caption with `new_head`,
     first frame, end frame)."""

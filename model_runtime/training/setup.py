@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import importlib
 from typing import Callable
 
 import torch
@@ -83,6 +84,20 @@ def _derive_then_build(lib, train_ids: list[int], val_ids: list[int], derive: Ca
     return lib, train_ids, val_ids, build(lib, train_ids, seed=seed), build(lib, val_ids, seed=seed + 1)
 
 
+# The copies a window recipe adds to a stage, in the order they are made: (WindowRecipe field naming the stages,
+# module, function, what the set-up note calls them). The start-up copies come last so that some set off into the
+# reversed walks (setting off backwards); they leave the slowed walks out (data/startups.py STARTUP_NUMBER).
+RECIPE_COPIES = (
+    # forward walks played backwards: too few real backward walks to learn the caption from
+    ("reversal_stages", "..data.reversals", "add_reversals", "reversed copies of forward walks (walking backwards)"),
+    # forward walks played slower: captions hardly ever say how fast a walk goes
+    ("slowed_walk_stages", "..data.slowed_walks", "add_slowed_walks",
+     "slowed copies of forward walks (walking slowly)"),
+    # standing, then setting off: no clip starts from standing, every ego does
+    ("startup_stages", "..data.startups", "add_startups", "start-up copies (standing, then setting off)"),
+)
+
+
 def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int, rank: int,
                    note: Callable[[str], None] = lambda msg: None, mirror: bool = True,
                    windows: WindowRecipe = WINDOW_RECIPES["captured"]
@@ -96,23 +111,11 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
         from ..data.mirror import add_mirrors
         lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids, add_mirrors, seed)
         note(f"{n} mirrored copies of real clips")
-    if stage in windows.reversal_stages:
-        # forward walks played backwards: too few real backward walks to learn the caption from (data/reversals.py);
-        # before the start-up copies, so that some set off backwards
-        from ..data.reversals import add_reversals
-        lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids, add_reversals, seed)
-        note(f"{n} reversed copies of forward walks (walking backwards)")
-    if stage in windows.slowed_walk_stages:
-        # forward walks played slower: captions hardly ever say how fast a walk goes (data/slowed_walks.py); after
-        # the reversed copies (none is slowed) and before the start-up copies (none sets off from one)
-        from ..data.slowed_walks import add_slowed_walks
-        lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids, add_slowed_walks, seed)
-        note(f"{n} slowed copies of forward walks (walking slowly)")
-    if stage in windows.startup_stages:
-        # standing, then setting off: no clip starts from standing, every ego does (data/startups.py)
-        from ..data.startups import add_startups
-        lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids, add_startups, seed)
-        note(f"{n} start-up copies (standing, then setting off)")
+    for stages, module, derive, what in RECIPE_COPIES:
+        if stage in getattr(windows, stages):
+            lib, train_ids, val_ids, n = _derive(lib, train_ids, val_ids,
+                                                 getattr(importlib.import_module(module, __package__), derive), seed)
+            note(f"{n} {what}")
     pairs_tr = pairs_va = scenes_tr = scenes_va = None
     if stage in windows.hhi_copy_stages and stage not in ("hhi", "fwsr"):
         # the HHI stage's copies of real clips as plain motion (no partner): the decoder learns to render them
