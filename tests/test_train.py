@@ -462,7 +462,8 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
                       "startup_stages": ["prior"], "reversal_stages": [], "turn_arrival_stages": [],
                       "step_aside_rule": "ahead", "face_arrivals": False, "walk_aside": False,
                       "head_shares": [], "head_share_stages": [], "decoder_shown_weight": 1.0,
-                      "hhi_copy_stages": [], "wider_phrasings": False, "slowed_walk_stages": []}
+                      "hhi_copy_stages": [], "wider_phrasings": False, "slowed_walk_stages": [],
+                      "setoff_share": 0.0}
     with pytest.raises(RemogenError, match="unknown window recipe 'odd'; use one of captured, balanced, reversed"):
         train_stage("prior", out, lib, config="tiny", steps=1, progress=False, windows="odd")
 

@@ -43,7 +43,7 @@ COPIES = 1                           # per calm standing clip
 ATTEMPTS = 6
 
 
-def _arriving_partner(lib: ClipLibrary, clips: ClipCache, walks: WalkPool, stands: list[int], not_source: int,
+def arriving_partner(lib: ClipLibrary, clips: ClipCache, walks: WalkPool, stands: list[int], not_source: int,
                       rng: np.random.Generator) -> tuple[int, np.ndarray, np.ndarray, int] | None:
     """(walk clip, rotations, pelvis, the frame it comes to rest) of a real straight walk slowed to rest, or None."""
     walk = int(rng.integers(WALK_FRAMES[0], WALK_FRAMES[1] + 1))
@@ -58,7 +58,7 @@ def _arriving_partner(lib: ClipLibrary, clips: ClipCache, walks: WalkPool, stand
 def _greeted_one(lib: ClipLibrary, clips: ClipCache, s: int, walks: WalkPool, stands: list[int],
                  rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, int, np.ndarray, np.ndarray] | None:
     """(ego rotations, ego pelvis, partner's walk clip, partner rotations, partner pelvis) for standing clip s."""
-    got = _arriving_partner(lib, clips, walks, stands, s, rng)
+    got = arriving_partner(lib, clips, walks, stands, s, rng)
     if got is None:
         return None
     src, p_rot, p_pel, rest = got

@@ -98,6 +98,11 @@ SLOWED_WALK_WEIGHT = 0.5
 # ahead, and without these the HSI module (control off, val) reached 2 of 24 goals more than 100 deg off facing.
 TURN_ARRIVAL_STAGES: tuple[str, ...] = ()
 TURN_ARRIVAL_WEIGHT = 3.0   # how often their windows are drawn, against their frame count
+# Copies of the controlled runtime's own reactions (training/controlled_copies.py), in a library made by its command,
+# drawn this many times as often as their frame count says: 1,065 of them among 19,427 HHI pairs are 61 % of the
+# draws. Measured on val and not shipped: the module learned no better crossing without control from them (README,
+# "Learning the controlled reaction").
+CONTROLLED_COPY_WEIGHT = 20.0
 
 
 # The decoder stage. The VAE's reconstruction loss weighs all 276 feature channels alike, and the motion shown (the
@@ -143,6 +148,7 @@ class WindowRecipe:
     decoder_shown_weight: float = DECODER_SHOWN_WEIGHT   # the decoder stage's weight of the motion as shown
     hhi_copy_stages: tuple[str, ...] = ()  # other stages than HHI and FWSR that see the HHI copies too (hhi_copies.py)
     wider_phrasings: bool = False   # training captions also drawn in data/phrasings.py's WIDER_VERB_SYNONYMS
+    setoff_share: float = 0.0       # HHI stage: share of a pair's draws from its set-off windows (samples.py SETOFF_*)
     slowed_walk_stages: tuple[str, ...] = SLOWED_WALK_STAGES  # the stages that also see slowed forward walks
 
     def as_meta(self) -> dict:
@@ -196,6 +202,11 @@ WINDOW_RECIPES = {
     "kicks_hhi": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",),
                               head_share_stages=("prior", "decoder"), head_shares=KICK_HEAD_SHARES,
                               decoder_shown_weight=0.0, hhi_copy_stages=("decoder",)),
+    # the HHI stage with half of each pair's draws, where it has any, from its set-off windows (a still history, a
+    # moving future): what a standing ego must learn is when to start moving, and few windows show it. Meant for a
+    # library with the controlled copies (training/controlled_copies.py). Measured on val and not shipped (README,
+    # "Learning the controlled reaction")
+    "setoffs": WindowRecipe(setoff_share=0.5),
     # the kicks windows, and for the prior slowed copies of the forward walks (data/slowed_walks.py). Measured on
     # val and not shipped: the slow-walk kind is met, and every snapshot or average of them loses a met target
     "kicks_slowed": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",),

@@ -25,9 +25,9 @@ from ..data.phrasings import pick_phrasing
 from ..data.stretches import split_style
 from ..features import JOINT_DELTA, ROOT_T, FeatureStats, canonicalize, to_canonical, world_points_to_canonical
 from ..skeleton import NUM_JOINTS, forward_kinematics
-from .recipe import (REVERSAL_WEIGHT, SLOW_WALK_CAPTION, SLOW_WALK_HEADS, SLOW_WALK_SHARE, SLOW_WALK_SPEED,
-                     SLOWED_WALK_WEIGHT, STARTUP_WEIGHT, STILL_CAPTION, STILL_SHARE, STILL_SPEED, STILL_TRAVEL,
-                     TURN_ARRIVAL_WEIGHT)
+from .recipe import (CONTROLLED_COPY_WEIGHT, REVERSAL_WEIGHT, SLOW_WALK_CAPTION, SLOW_WALK_HEADS, SLOW_WALK_SHARE,
+                     SLOW_WALK_SPEED, SLOWED_WALK_WEIGHT, STARTUP_WEIGHT, STILL_CAPTION, STILL_SHARE, STILL_SPEED,
+                     STILL_TRAVEL, TURN_ARRIVAL_WEIGHT)
 
 FPS = 10.0
 
@@ -92,6 +92,10 @@ def slow_walk_caption(caption: str) -> str | None:
     return SLOW_WALK_CAPTION + (f", {style}" if style else "") if head in SLOW_WALK_HEADS else None
 
 INTERACTION_RANGE = 2.5   # m between the pelvises: the partner is close enough to shape the next segment
+# A set-off window: the pelvis travels less than SETOFF_STILL over the history and more than SETOFF_MOVE over the
+# future (a standing body starting to move; recipe.WindowRecipe.setoff_share)
+SETOFF_STILL = 0.05       # m
+SETOFF_MOVE = 0.15        # m
 INTERACTION_SHARE = 0.5   # share of HHI windows drawn among those in range
 GOAL_RANGE = 1.0          # m from the pelvis to the goal (floor plane): the goal decides how the segment ends
 GOAL_SHARE = 0.5          # share of HSI windows drawn among those that reach it
@@ -100,7 +104,8 @@ GOAL_SHARE = 0.5          # share of HSI windows drawn among those that reach it
 SCENE_KIND_WEIGHT = {"detour": 3.0}
 # Derived clips drawn more or less often than their frame count (library.derived_kind -> factor).
 CLIP_KIND_WEIGHT = {"startup": STARTUP_WEIGHT, "reversed": REVERSAL_WEIGHT, "turnarrive": TURN_ARRIVAL_WEIGHT,
-                    "slowed": SLOWED_WALK_WEIGHT}
+                    "slowed": SLOWED_WALK_WEIGHT, "ctlavoid": CONTROLLED_COPY_WEIGHT,
+                    "ctlgreeted": CONTROLLED_COPY_WEIGHT}
 
 
 @dataclass
@@ -134,7 +139,8 @@ class SegmentSampler:
                  seed: int = 0, pairs: list | None = None, scenes: list | None = None,
                  still_share: float = STILL_SHARE, slow_walk_share: float = SLOW_WALK_SHARE,
                  caption_balance_power: float = 0.0,
-                 head_shares: tuple[tuple[str, float], ...] = (), wider_phrasings: bool = False) -> None:
+                 head_shares: tuple[tuple[str, float], ...] = (), wider_phrasings: bool = False,
+                 setoff_share: float = 0.0) -> None:
         self.lib, self.cfg, self.stats = lib, cfg, stats
         self.wider_phrasings = wider_phrasings
         self.still_share, self.slow_walk_share = still_share, slow_walk_share
@@ -169,6 +175,9 @@ class SegmentSampler:
         elif scenes is not None:
             self._close_starts = [self._goal_starts(i, k) for i, k in self.items]
             self._close_share = GOAL_SHARE
+        # set-off windows drawn first, a share of the time (pairs only)
+        self._setoff_share = setoff_share if pairs is not None else 0.0
+        self._setoff_starts = [self._setoffs(i) for i, _ in self.items] if self._setoff_share > 0.0 else None
 
     def _interaction_starts(self, clip: int, k: int) -> torch.Tensor:
         """Window starts whose future frames bring the partner's pelvis within INTERACTION_RANGE."""
@@ -192,7 +201,23 @@ class SegmentSampler:
         ok = [s for s in range(starts) if close[s + h:s + self.span].any()]
         return torch.tensor(ok, dtype=torch.long)
 
+    def _setoffs(self, clip: int) -> torch.Tensor:
+        """Window starts whose pelvis keeps still over the history and moves off over the future (SETOFF_*)."""
+        a = int(self.lib.offsets[clip])
+        xy = np.asarray(self.lib.pelvis[a:a + self.lib.frames(clip), :2], np.float64)
+        h, starts = self.cfg.history, self.lib.frames(clip) - self.span
+        s = np.arange(max(starts, 0))
+        if not len(s):
+            return torch.zeros(0, dtype=torch.long)
+        still = np.linalg.norm(xy[s + h] - xy[s], axis=-1) < SETOFF_STILL
+        moves = np.linalg.norm(xy[s + self.span] - xy[s + h], axis=-1) > SETOFF_MOVE
+        return torch.from_numpy(s[still & moves]).long()
+
     def _window_start(self, p: int, rows: int) -> int:
+        if self._setoff_starts is not None and len(self._setoff_starts[p]) and \
+                float(torch.rand((), generator=self.gen)) < self._setoff_share:
+            c = self._setoff_starts[p]
+            return int(c[int(torch.randint(0, len(c), (1,), generator=self.gen))])
         if self._close_starts is not None and len(self._close_starts[p]) and \
                 float(torch.rand((), generator=self.gen)) < self._close_share:
             c = self._close_starts[p]

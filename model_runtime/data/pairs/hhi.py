@@ -56,7 +56,7 @@ HHI_KINDS = ("approach_face", "greet", "avoid_blocker", "turn_to_face", "arrive_
 # the pair kind of each kind of derived copy (library.derived_kind); a mirrored copy takes the real-clip rules
 COPY_KINDS = {"turn": "turn_to_face", "arriveface": "arrive_face", "avoid": "avoid_walker",
               "stepaside": "step_aside", "follow": "follow", "greeted": "face_arrival",
-              "walkaside": "step_aside"}
+              "walkaside": "step_aside", "ctlavoid": "avoid_walker", "ctlgreeted": "face_arrival"}
 WALKING_PARTNER_KINDS = ("avoid_walker", "step_aside", "follow", "face_arrival")   # the partner is the copy's partner clip
 
 
