@@ -44,7 +44,7 @@ ATTEMPTS = 6
 
 
 def arriving_partner(lib: ClipLibrary, clips: ClipCache, walks: WalkPool, stands: list[int], not_source: int,
-                      rng: np.random.Generator) -> tuple[int, np.ndarray, np.ndarray, int] | None:
+                     rng: np.random.Generator) -> tuple[int, np.ndarray, np.ndarray, int] | None:
     """(walk clip, rotations, pelvis, the frame it comes to rest) of a real straight walk slowed to rest, or None."""
     walk = int(rng.integers(WALK_FRAMES[0], WALK_FRAMES[1] + 1))
     src = walks.pick(rng, walk + 2, not_source)

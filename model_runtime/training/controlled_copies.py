@@ -33,26 +33,30 @@ import argparse
 import math
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
+from ..data.detours import BLEND_FRAMES, STAND_FRAMES
+from ..data.face_arrivals import ARRIVE_DISTANCE, arriving_partner
 from ..data.library import ClipLibrary
+from ..data.meeting import MIN_STAND
 from ..data.new_clips import NewClip, copy_name, extend_library, new_clip, partner_clip_name
 from ..data.pairs import ClipCache
-from ..data.pairs.hhi import AVOID_CLEARANCE
-from ..data.face_arrivals import ARRIVE_DISTANCE, arriving_partner
-from ..data.detours import BLEND_FRAMES, STAND_FRAMES
-from ..data.meeting import MIN_STAND
 from ..data.pairs.clips import pose_joints
+from ..data.pairs.hhi import AVOID_CLEARANCE
 from ..data.stretches import WalkPool, calm_standing, clearance, moved, partner_walk, rotate_xy, walks, yaw_of
 from ..data.turns import pivot_turn
+
+if TYPE_CHECKING:
+    from ..model import ReMoGenModel
 
 KIND = "ctlavoid"            # a crossing walker (pair kind avoid_walker)
 APPROACH_KIND = "ctlgreeted"  # a walker who comes up and stops (pair kind face_arrival)
 SEED = 3003                  # the suite's splits draw from 1001 (val) and 2002 (test)
 FRAMES = 50                  # 5 s at 10 fps, as the suite's crossing episodes
-AFTER_ARRIVAL = 30           # frames an approach copy goes on after the walker has come to rest, as the suite's
+AFTER_ARRIVAL = 30           # frames an approach copy goes on after the walker has come to rest (the suite: 3 s)
 CROSS_FRAME = 25             # the walker passes the meeting point after 2.5 s
 EGO_WALK_SPEED = 1.0         # m/s: where a walking ego is expected at the crossing
 MISS = 0.3                   # m: the walker's line passes the meeting point within this
@@ -116,7 +120,7 @@ def draw_approach(lib: ClipLibrary, clips: ClipCache, pool: WalkPool, stands: li
     return Encounter(APPROACH_KIND, STAND_TEXT, seed, src, rot, pel, pose_joints(rot, pel).astype(np.float32))
 
 
-def roll_out(model, ep: Encounter) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def roll_out(model: "ReMoGenModel", ep: Encounter) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(joints (T, 22, 3), local rotations (T, 22, 4) w-first, pelvis (T, 3)) of the controlled ego."""
     from ..session import ReactionSession
     s = ReactionSession(model, text=ep.text, seed=ep.seed, alpha={"hhi": 1.0, "hsi": 1.0}, fwsr=True)
@@ -130,20 +134,22 @@ def roll_out(model, ep: Encounter) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return joints, rots, pelvis
 
 
-def model_licence_tag(model) -> str:
+def model_licence_tag(model: "ReMoGenModel") -> str:
     """The dataset tag of motion the model made: its most restrictive training data."""
     return "bandai" if model.meta.get("non_commercial") or "bandai" in model.meta.get("sources", []) else "cmu"
 
 
-def controlled_copies(model, lib: ClipLibrary, episodes: int, seed: int = SEED, approach_share: float = 0.0,
-                      progress=lambda done, kept: None) -> tuple[list[NewClip], dict]:
+def controlled_copies(model: "ReMoGenModel", lib: ClipLibrary, episodes: int, seed: int = SEED,
+                      approach_share: float = 0.0, progress: Callable[[int, int], None] = lambda done, kept: None
+                      ) -> tuple[list[NewClip], dict]:
     """Up to `episodes` controlled copies (each with its partner clip): crossings, and walkers who come up and
     stop for `approach_share` of them; and counts of what was drawn."""
     train = [i for i in range(len(lib)) if not lib.is_held_out(i)]
     clips = ClipCache(lib, train)
     pool = WalkPool.of(clips, walks(lib, clips, train))
     # standing clips a walker can come to rest in (detours.come_to_rest cuts this much of one)
-    stands = [i for i in calm_standing(lib, clips, train, MIN_STAND) if lib.frames(i) >= STAND_FRAMES[1] + BLEND_FRAMES]
+    stands = [i for i in calm_standing(lib, clips, train, MIN_STAND)
+              if lib.frames(i) >= STAND_FRAMES[1] + BLEND_FRAMES]
     tag = model_licence_tag(model)
     out: list[NewClip] = []
     counts = {"drawn": 0, "no_walk": 0, "too_close": 0, "kept": 0}
@@ -165,8 +171,7 @@ def controlled_copies(model, lib: ClipLibrary, episodes: int, seed: int = SEED, 
             if err > 1e-3:
                 raise RuntimeError(f"a rollout's pose does not reproduce its joints ({err:.4f} m off)")
         name = copy_name(lib, ep.source, ep.kind, k)
-        ego = new_clip(lib, ep.source, name, ep.text, rots, pelvis)
-        ego.source = tag
+        ego = replace(new_clip(lib, ep.source, name, ep.text, rots, pelvis), source=tag)   # the model's licence
         out += [ego, new_clip(lib, ep.source, partner_clip_name(name), lib.captions[ep.source], ep.rotations,
                               ep.pelvis, ego=False)]
         counts["kept"] += 1
@@ -176,13 +181,13 @@ def controlled_copies(model, lib: ClipLibrary, episodes: int, seed: int = SEED, 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m model_runtime.training.controlled_copies",
-                                 description="Append copies of the controlled runtime's crossing reactions to a "
-                                             "clip library, for the HHI stage.")
+                                 description="Append copies of the controlled runtime's crossing and approach "
+                                             "reactions to a clip library, for the HHI stage.")
     ap.add_argument("--library", required=True, help="the clip library (.npz) to extend")
     ap.add_argument("--out", required=True, help="where to write the extended library (.npz)")
     ap.add_argument("--model", default=None, help="model file whose controlled runtime makes the copies "
                                                   "(default: the shipped weights)")
-    ap.add_argument("--episodes", type=int, default=1000, help="crossings to draw (default 1000)")
+    ap.add_argument("--episodes", type=int, default=1000, help="encounters to draw (default 1000)")
     ap.add_argument("--approach-share", type=float, default=0.0,
                     help="share of the episodes where the walker comes up and stops instead of crossing (default 0)")
     ap.add_argument("--seed", type=int, default=SEED, help=f"generator seed (default {SEED}; the behaviour "

@@ -92,11 +92,11 @@ def slow_walk_caption(caption: str) -> str | None:
     return SLOW_WALK_CAPTION + (f", {style}" if style else "") if head in SLOW_WALK_HEADS else None
 
 INTERACTION_RANGE = 2.5   # m between the pelvises: the partner is close enough to shape the next segment
+INTERACTION_SHARE = 0.5   # share of HHI windows drawn among those in range
 # A set-off window: the pelvis travels less than SETOFF_STILL over the history and more than SETOFF_MOVE over the
 # future (a standing body starting to move; recipe.WindowRecipe.setoff_share)
 SETOFF_STILL = 0.05       # m
 SETOFF_MOVE = 0.15        # m
-INTERACTION_SHARE = 0.5   # share of HHI windows drawn among those in range
 GOAL_RANGE = 1.0          # m from the pelvis to the goal (floor plane): the goal decides how the segment ends
 GOAL_SHARE = 0.5          # share of HSI windows drawn among those that reach it
 # Detour scenes (data/detours.py) are the only ones whose box stands on the path to the goal, about 1 in 10
