@@ -243,6 +243,41 @@ def test_hhi_windows_favour_the_frames_where_the_partner_is_near(lib):
     _assert_drawn_share(s, lib.features(clip).shape[0], close, samples.INTERACTION_SHARE)
 
 
+def test_the_hhi_loss_can_be_taken_on_the_prediction_guided_as_the_runtime_guides_it(lib):
+    import numpy as np
+    from model_runtime.data.pairs import HHIPair
+    from model_runtime.training.recipe import WINDOW_RECIPES
+    from model_runtime.training.stages import StageLoss
+    model = load_model(config="tiny")
+    torch.manual_seed(0)
+    with torch.no_grad():       # a module and a null text token that do something, so the passes differ
+        for p in list(model.mims["hhi"].parameters()) + [model.denoiser.null_text]:
+            p.add_(0.05 * torch.randn_like(p))
+    n = lib.frames(0)
+    a = int(lib.offsets[0])
+    partner = np.zeros((n, 22, 3), np.float32)
+    partner[:, :, :2] = lib.pelvis[a:a + n, None, :2] + 1.0
+    b = SegmentSampler(lib, [0], model.cfg, model.stats, seed=0, pairs=[HHIPair(0, partner, "approach_face")]).sample(4)
+    scale = WINDOW_RECIPES["setoffs_guided"].hhi_guidance
+    loss = StageLoss(model, "hhi", hhi_guidance=scale)
+    ctx, alpha = loss.contexts(b)
+    inject = model.injector(ctx, alpha)
+    with torch.no_grad():
+        z, _ = model.vae.encode(b.hist, b.fut)
+        t = torch.full((4,), model.cfg.diffusion_steps - 1)
+        emb = model.text_encoder.encode(b.text)
+        cond = model.denoiser(z, t, b.hist, model.denoiser.text_tokens(emb, torch.zeros(4, dtype=torch.bool)), inject)
+        uncond = model.denoiser(z, t, b.hist, model.denoiser.text_tokens(emb, torch.ones(4, dtype=torch.bool)), inject)
+        guided = loss._guided(b, z, t, inject)
+    assert scale == 6.0 and not torch.allclose(cond, uncond)
+    assert torch.allclose(guided, uncond + scale * (cond - uncond), atol=1e-5)
+    # the loss itself trains through both passes; without a scale (every shipped recipe) it is the usual one
+    value, parts = loss(b, torch.Generator().manual_seed(0))
+    value.backward()
+    assert torch.isfinite(value) and any(p.grad is not None for p in model.mims["hhi"].parameters())
+    assert StageLoss(model, "hhi").hhi_guidance == 0.0
+
+
 def test_detour_scenes_are_drawn_more_often(lib):
     import numpy as np
     from model_runtime.data.pairs import HSIScene
@@ -463,7 +498,7 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
                       "step_aside_rule": "ahead", "face_arrivals": False, "walk_aside": False,
                       "head_shares": [], "head_share_stages": [], "decoder_shown_weight": 1.0,
                       "hhi_copy_stages": [], "wider_phrasings": False, "slowed_walk_stages": [],
-                      "setoff_share": 0.0}
+                      "setoff_share": 0.0, "hhi_guidance": 0.0}
     with pytest.raises(RemogenError, match="unknown window recipe 'odd'; use one of captured, balanced, reversed"):
         train_stage("prior", out, lib, config="tiny", steps=1, progress=False, windows="odd")
 

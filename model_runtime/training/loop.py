@@ -109,7 +109,8 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         decoder_sensitivity(model, lib, seed)
     tr, va = build_samplers(stage, model, lib, seed, rank, note, mirror=mirror, windows=WINDOW_RECIPES[windows])
     model.to(device)
-    loss_mod = StageLoss(model, stage, shown_weight=WINDOW_RECIPES[windows].decoder_shown_weight)
+    loss_mod = StageLoss(model, stage, shown_weight=WINDOW_RECIPES[windows].decoder_shown_weight,
+                         hhi_guidance=WINDOW_RECIPES[windows].hhi_guidance)
     ddp = (torch.nn.parallel.DistributedDataParallel(loss_mod, device_ids=[device] if device.type == "cuda" else None)
            if world > 1 else loss_mod)
     opt = torch.optim.AdamW(params, lr=lr, weight_decay=0.01)

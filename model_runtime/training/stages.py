@@ -75,10 +75,12 @@ def freeze_for(model: ReMoGenModel, stage: str) -> list[nn.Parameter]:
 class StageLoss(nn.Module):
     """forward(batch) -> (loss, parts); wrapping this module in DDP gives data-parallel training."""
 
-    def __init__(self, model: ReMoGenModel, stage: str, shown_weight: float = DECODER_SHOWN_WEIGHT) -> None:
+    def __init__(self, model: ReMoGenModel, stage: str, shown_weight: float = DECODER_SHOWN_WEIGHT,
+                 hhi_guidance: float = 0.0) -> None:
         super().__init__()
         self.model, self.stage = model, stage
         self.shown_weight = shown_weight   # the decoder stage's weight of the motion as shown (WindowRecipe)
+        self.hhi_guidance = hhi_guidance   # the HHI stage's loss on the guided prediction (WindowRecipe)
 
     def forward(self, batch: Batch, gen: torch.Generator) -> tuple[torch.Tensor, dict[str, float]]:
         return getattr(self, f"_{self.stage if self.stage in ('vae', 'fwsr', 'decoder') else 'denoise'}")(batch, gen)
@@ -128,10 +130,22 @@ class StageLoss(nn.Module):
         t = torch.randint(0, m.cfg.diffusion_steps, (z0.shape[0],), generator=gen).to(z0.device)
         z_t = m.schedule.q_sample(z0, t, noise(z0.shape, gen, z0.device))
         ctx, alpha = self.contexts(b)
-        x0 = m.denoiser(z_t, t, b.hist, self.text_tokens(b, gen), m.injector(ctx, alpha))
+        if self.stage == "hhi" and self.hhi_guidance > 1.0:
+            x0 = self._guided(b, z_t, t, m.injector(ctx, alpha))
+        else:
+            x0 = m.denoiser(z_t, t, b.hist, self.text_tokens(b, gen), m.injector(ctx, alpha))
         latent = nn.functional.mse_loss(x0, z0)
         rec = nn.functional.smooth_l1_loss(m.vae.decode(b.hist, x0), b.fut)
         return latent + rec, {"latent": float(latent.detach()), "rec": float(rec.detach())}
+
+    def _guided(self, b: Batch, z_t: torch.Tensor, t: torch.Tensor, inject) -> torch.Tensor:
+        """The x0 prediction guided as the runtime guides it: both passes with the module, the text's push scaled."""
+        m = self.model
+        emb = m.text_encoder.encode(b.text).to(z_t.device)
+        keep = torch.zeros(len(b.text), dtype=torch.bool, device=z_t.device)
+        cond = m.denoiser(z_t, t, b.hist, m.denoiser.text_tokens(emb, keep), inject)
+        uncond = m.denoiser(z_t, t, b.hist, m.denoiser.text_tokens(emb, ~keep), inject)
+        return uncond + self.hhi_guidance * (cond - uncond)
 
     def _fwsr(self, b: Batch, gen: torch.Generator):
         m = self.model
