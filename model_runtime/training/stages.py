@@ -12,6 +12,8 @@
 """
 from __future__ import annotations
 
+from typing import Callable
+
 import torch
 from torch import nn
 
@@ -138,8 +140,9 @@ class StageLoss(nn.Module):
         rec = nn.functional.smooth_l1_loss(m.vae.decode(b.hist, x0), b.fut)
         return latent + rec, {"latent": float(latent.detach()), "rec": float(rec.detach())}
 
-    def _guided(self, b: Batch, z_t: torch.Tensor, t: torch.Tensor, inject) -> torch.Tensor:
-        """The x0 prediction guided as the runtime guides it: both passes with the module, the text's push scaled."""
+    def _guided(self, b: Batch, z_t: torch.Tensor, t: torch.Tensor, inject: Callable | None) -> torch.Tensor:
+        """The x0 prediction guided as the runtime guides it: both passes with the module, the text's push scaled.
+        No caption dropout here: the unconditional pass is the dropped caption."""
         m = self.model
         emb = m.text_encoder.encode(b.text).to(z_t.device)
         keep = torch.zeros(len(b.text), dtype=torch.bool, device=z_t.device)
