@@ -9,6 +9,7 @@ from model_runtime.data.pairs import ClipCache
 from model_runtime.data.pairs.hhi import AVOID_CLEARANCE, COPY_KINDS, build_hhi_pairs
 from model_runtime.data.stretches import WalkPool, calm_standing, clearance, walks
 from model_runtime.data.detours import BLEND_FRAMES, STAND_FRAMES
+from model_runtime.behaviour.scenarios import CROSS_FRAMES, CROSS_MISS
 from model_runtime.training import controlled_copies as cc
 from synthetic import library_of, rigid_clip, walking_clip
 
@@ -35,12 +36,12 @@ def test_a_crossing_walker_passes_where_the_ego_would_be(lib, pools):
     seen = set()
     for k in range(12):
         ep = cc.draw_crossing(lib, clips, pool, np.random.default_rng([5, k]))
-        assert ep is not None and ep.kind == cc.KIND and ep.frames == cc.FRAMES
+        assert ep is not None and ep.kind == cc.KIND and ep.frames == CROSS_FRAMES
         walking = ep.text == cc.WALK_TEXT
         seen.add(walking)
         meet = np.array([0.0, -2.5 if walking else 0.0])
         # at 2.5 s its pelvis is within MISS of the meeting point, and it came from (and goes on) well away
-        assert np.linalg.norm(ep.pelvis[cc.CROSS_FRAME, :2] - meet) <= cc.MISS + 1e-5
+        assert np.linalg.norm(ep.pelvis[cc.CROSS_FRAME, :2] - meet) <= CROSS_MISS + 1e-5
         assert np.linalg.norm(ep.pelvis[0, :2] - meet) > 1.5 and np.linalg.norm(ep.pelvis[-1, :2] - meet) > 1.5
         assert not lib.is_held_out(ep.source)
         assert np.allclose(ep.joints[:, 0], ep.pelvis, atol=1e-4)

@@ -24,6 +24,11 @@ STAND_TEXT = "a person stands"
 WALK_TEXT = "a person walks forward"
 GOAL_TEXT = "a person walks"
 TEXT_EPISODE_FRAMES = 100              # 10 s per text prompt
+CROSS_TIME = 2.5                       # s: a crossing partner passes where the ego should be then
+CROSS_FRAMES = 50                      # 5 s crossing episodes
+CROSS_MISS = 0.3                       # m: the partner's line passes that point within this
+EGO_WALK_SPEED = 1.0                   # m/s: where a walking ego is expected at CROSS_TIME
+APPROACH_AFTER = 3.0                   # s an approach episode goes on after the partner's rough arrival
 from .. import WALK_CLIP
 from .text_targets import TEXT_PROMPTS  # prompt -> kind -> statistic and target
 
@@ -125,18 +130,23 @@ def _rotate(v: np.ndarray, ang: float) -> np.ndarray:
     return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
 
 
+def crossing_point(walks: bool, heading: float, offset: float) -> np.ndarray:
+    """World xy a crossing partner's pelvis passes at CROSS_TIME: where the ego will be then (standing at the
+    origin, or EGO_WALK_SPEED straight ahead), moved `offset` m to the left of the partner's heading (rad)."""
+    meet = _facing_dir(0.0) * (EGO_WALK_SPEED * CROSS_TIME if walks else 0.0)
+    direction = np.array([math.cos(heading), math.sin(heading)])
+    return meet + np.array([-direction[1], direction[0]]) * offset
+
+
 # ----------------------------------------------------------------------------- families
 def _crossing(rng: np.random.Generator, i: int) -> Episode:
     speed = rng.uniform(0.8, 1.6)
     heading = rng.uniform(0.0, 2.0 * math.pi)
-    offset = rng.uniform(0.0, 0.3) * rng.choice((-1.0, 1.0))
+    offset = rng.uniform(0.0, CROSS_MISS) * rng.choice((-1.0, 1.0))
     walks = bool(rng.integers(2))
-    t_cross, frames = 2.5, 50
-    # where the ego will be when the partner passes: standing at the origin, or ~1 m/s straight ahead
-    meet = _facing_dir(0.0) * (1.0 * t_cross if walks else 0.0)
+    frames = CROSS_FRAMES
     direction = np.array([math.cos(heading), math.sin(heading)])
-    normal = np.array([-direction[1], direction[0]])
-    start = meet + normal * offset - direction * speed * t_cross
+    start = crossing_point(walks, heading, offset) - direction * speed * CROSS_TIME
     partner = walk_track(start, heading, speed * np.arange(frames) / FPS)
     return Episode("crossing", i, int(rng.integers(2 ** 31)), WALK_TEXT if walks else STAND_TEXT, frames,
                    partner=partner, params={"speed": speed, "heading_deg": math.degrees(heading),
@@ -151,7 +161,7 @@ def _approach(rng: np.random.Generator, i: int) -> Episode:
     start = _rotate(_facing_dir(0.0), off) * start_r
     heading = math.atan2(-start[1], -start[0])          # straight at the ego
     walk_s = (start_r - stop) / speed + 1.0              # rough arrival time incl. the slow-down
-    frames = int(round((walk_s + 3.0) * FPS))
+    frames = int(round((walk_s + APPROACH_AFTER) * FPS))
     partner = walk_track(start, heading, cruise_then_stop(start_r - stop, speed, frames))
     return Episode("approach", i, int(rng.integers(2 ** 31)), STAND_TEXT, frames, partner=partner,
                    params={"off_facing_deg": math.degrees(off), "stop_m": stop, "speed": speed})

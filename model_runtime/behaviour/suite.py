@@ -33,16 +33,20 @@ def has_cue(ep: Episode) -> bool:
     return ep.partner is not None or ep.goal is not None or bool(ep.boxes)
 
 
-def roll_out(model, ep: Episode, alpha: float, *, guidance: float = DEFAULT_GUIDANCE, **session_options) -> np.ndarray:
-    """(frames, 22, 3) world joints of the ego in one episode, both interaction alphas set to `alpha`."""
+def roll_out_frames(model, ep: Episode, alpha: float, *, guidance: float = DEFAULT_GUIDANCE,
+                    **session_options) -> list:
+    """The ego's EgoFrames in one episode, both interaction alphas set to `alpha`."""
     from ..session import ReactionSession
     s = ReactionSession(model, text=ep.text, seed=ep.seed, alpha={"hhi": alpha, "hsi": alpha},
                         guidance=guidance, scene=scene_grid(ep), **{"fwsr": True, **session_options})
     s.reset(root_position=(0.0, 0.0, 0.0), yaw=0.0)
-    out = np.empty((ep.frames, 22, 3), np.float32)
-    for i in range(ep.frames):
-        out[i] = s.step(partner=None if ep.partner is None else ep.partner[i], goal=ep.goal).joints
-    return out
+    return [s.step(partner=None if ep.partner is None else ep.partner[i], goal=ep.goal) for i in range(ep.frames)]
+
+
+def roll_out(model, ep: Episode, alpha: float, *, guidance: float = DEFAULT_GUIDANCE, **session_options) -> np.ndarray:
+    """(frames, 22, 3) world joints of the ego in one episode, both interaction alphas set to `alpha`."""
+    frames = roll_out_frames(model, ep, alpha, guidance=guidance, **session_options)
+    return np.stack([f.joints for f in frames]).astype(np.float32, copy=False)
 
 
 def episode_metrics(ep: Episode, ego: np.ndarray) -> dict:

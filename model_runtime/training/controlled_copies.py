@@ -38,6 +38,8 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
+from ..behaviour.scenarios import (APPROACH_AFTER, CROSS_FRAMES, CROSS_MISS, CROSS_TIME, FPS, STAND_TEXT, WALK_TEXT,
+                                   Episode, crossing_point)
 from ..data.detours import BLEND_FRAMES, STAND_FRAMES
 from ..data.face_arrivals import ARRIVE_DISTANCE, arriving_partner
 from ..data.library import ClipLibrary
@@ -55,13 +57,8 @@ if TYPE_CHECKING:
 KIND = "ctlavoid"            # a crossing walker (pair kind avoid_walker)
 APPROACH_KIND = "ctlgreeted"  # a walker who comes up and stops (pair kind face_arrival)
 SEED = 3003                  # the suite's splits draw from 1001 (val) and 2002 (test)
-FRAMES = 50                  # 5 s at 10 fps, as the suite's crossing episodes
-AFTER_ARRIVAL = 30           # frames an approach copy goes on after the walker has come to rest (the suite: 3 s)
-CROSS_FRAME = 25             # the walker passes the meeting point after 2.5 s
-EGO_WALK_SPEED = 1.0         # m/s: where a walking ego is expected at the crossing
-MISS = 0.3                   # m: the walker's line passes the meeting point within this
-STAND_TEXT = "a person stands"
-WALK_TEXT = "a person walks forward"
+CROSS_FRAME = int(round(CROSS_TIME * FPS))           # the frame the walker passes where the ego should be
+AFTER_ARRIVAL = int(round(APPROACH_AFTER * FPS))     # frames an approach copy goes on once the walker rests
 
 
 @dataclass
@@ -84,15 +81,12 @@ def draw_crossing(lib: ClipLibrary, clips: ClipCache, pool: WalkPool, rng: np.ra
     """A crossing as the behaviour suite draws them, the walker a real walk of `pool`; None when no walk fits."""
     walks_forward = bool(rng.integers(2))
     heading = rng.uniform(0.0, 2.0 * math.pi)
-    offset = rng.uniform(0.0, MISS) * rng.choice((-1.0, 1.0))
+    offset = rng.uniform(0.0, CROSS_MISS) * rng.choice((-1.0, 1.0))
     seed = int(rng.integers(2 ** 31))
-    part = partner_walk(lib, clips, pool, FRAMES, -1, rng)
+    part = partner_walk(lib, clips, pool, CROSS_FRAMES, -1, rng)
     if part is None:
         return None
-    # the ego faces -Y; a walking one is about EGO_WALK_SPEED * 2.5 s ahead when the walker passes
-    meet = np.array([0.0, -EGO_WALK_SPEED * CROSS_FRAME / 10.0 if walks_forward else 0.0])
-    direction = np.array([math.cos(heading), math.sin(heading)])
-    at = meet + np.array([-direction[1], direction[0]]) * offset
+    at = crossing_point(walks_forward, heading, offset)
     p = moved(part, heading - yaw_of(part.heading), CROSS_FRAME, at)
     return Encounter(KIND, WALK_TEXT if walks_forward else STAND_TEXT, seed, p.source, p.rotations, p.pelvis,
                      p.joints)
@@ -121,17 +115,12 @@ def draw_approach(lib: ClipLibrary, clips: ClipCache, pool: WalkPool, stands: li
 
 
 def roll_out(model: "ReMoGenModel", ep: Encounter) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(joints (T, 22, 3), local rotations (T, 22, 4) w-first, pelvis (T, 3)) of the controlled ego."""
-    from ..session import ReactionSession
-    s = ReactionSession(model, text=ep.text, seed=ep.seed, alpha={"hhi": 1.0, "hsi": 1.0}, fwsr=True)
-    s.reset(root_position=(0.0, 0.0, 0.0), yaw=0.0)
-    joints = np.empty((ep.frames, 22, 3), np.float32)
-    rots = np.empty((ep.frames, 22, 4), np.float32)
-    pelvis = np.empty((ep.frames, 3), np.float32)
-    for t in range(ep.frames):
-        f = s.step(partner=ep.joints[t])
-        joints[t], rots[t], pelvis[t] = f.joints, f.local_rotations, f.position
-    return joints, rots, pelvis
+    """(joints (T, 22, 3), local rotations (T, 22, 4) w-first, pelvis (T, 3)) of the ego, rolled out as the
+    behaviour suite rolls out its episodes, with the runtime's defaults (control on)."""
+    from ..behaviour.suite import roll_out_frames
+    frames = roll_out_frames(model, Episode(ep.kind, 0, ep.seed, ep.text, ep.frames, partner=ep.joints), 1.0)
+    return (np.stack([f.joints for f in frames]), np.stack([f.local_rotations for f in frames]),
+            np.stack([f.position for f in frames]))
 
 
 def model_licence_tag(model: "ReMoGenModel") -> str:
@@ -144,7 +133,7 @@ def controlled_copies(model: "ReMoGenModel", lib: ClipLibrary, episodes: int, se
                       ) -> tuple[list[NewClip], dict]:
     """Up to `episodes` controlled copies (each with its partner clip): crossings, and walkers who come up and
     stop for `approach_share` of them; and counts of what was drawn."""
-    train = [i for i in range(len(lib)) if not lib.is_held_out(i)]
+    train = lib.split("train")
     clips = ClipCache(lib, train)
     pool = WalkPool.of(clips, walks(lib, clips, train))
     # standing clips a walker can come to rest in (detours.come_to_rest cuts this much of one)

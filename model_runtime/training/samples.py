@@ -213,15 +213,17 @@ class SegmentSampler:
         moves = np.linalg.norm(xy[s + self.span] - xy[s + h], axis=-1) > SETOFF_MOVE
         return torch.from_numpy(s[still & moves]).long()
 
+    def _one_of(self, starts: list[torch.Tensor] | None, p: int, share: float) -> int | None:
+        """A start drawn from item p's `starts`, `share` of the time when it has any; else None."""
+        if starts is None or not len(starts[p]) or float(torch.rand((), generator=self.gen)) >= share:
+            return None
+        return int(starts[p][int(torch.randint(0, len(starts[p]), (1,), generator=self.gen))])
+
     def _window_start(self, p: int, rows: int) -> int:
-        if self._setoff_starts is not None and len(self._setoff_starts[p]) and \
-                float(torch.rand((), generator=self.gen)) < self._setoff_share:
-            c = self._setoff_starts[p]
-            return int(c[int(torch.randint(0, len(c), (1,), generator=self.gen))])
-        if self._close_starts is not None and len(self._close_starts[p]) and \
-                float(torch.rand((), generator=self.gen)) < self._close_share:
-            c = self._close_starts[p]
-            return int(c[int(torch.randint(0, len(c), (1,), generator=self.gen))])
+        for starts, share in ((self._setoff_starts, self._setoff_share), (self._close_starts, self._close_share)):
+            s = self._one_of(starts, p, share)
+            if s is not None:
+                return s
         return int(torch.randint(0, rows - self.span + 1, (1,), generator=self.gen))
 
     def _caption(self, window: torch.Tensor, clip: int) -> str:

@@ -132,10 +132,11 @@ class StageLoss(nn.Module):
         t = torch.randint(0, m.cfg.diffusion_steps, (z0.shape[0],), generator=gen).to(z0.device)
         z_t = m.schedule.q_sample(z0, t, noise(z0.shape, gen, z0.device))
         ctx, alpha = self.contexts(b)
+        inject = m.injector(ctx, alpha)
         if self.stage == "hhi" and self.hhi_guidance > 1.0:
-            x0 = self._guided(b, z_t, t, m.injector(ctx, alpha))
+            x0 = self._guided(b, z_t, t, inject)
         else:
-            x0 = m.denoiser(z_t, t, b.hist, self.text_tokens(b, gen), m.injector(ctx, alpha))
+            x0 = m.denoiser(z_t, t, b.hist, self.text_tokens(b, gen), inject)
         latent = nn.functional.mse_loss(x0, z0)
         rec = nn.functional.smooth_l1_loss(m.vae.decode(b.hist, x0), b.fut)
         return latent + rec, {"latent": float(latent.detach()), "rec": float(rec.detach())}
