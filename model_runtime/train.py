@@ -72,6 +72,9 @@ def main(argv: list[str] | None = None) -> int:
                          "what the shipped prior's last steps trained on); kicks: the balanced windows with kicks at 6 %% "
                          "of the prior's and the decoder stage's windows, the decoder on reconstruction alone; the "
                          "others: training/recipe.py WINDOW_RECIPES")
+    ap.add_argument("--anchor", type=float, default=None, metavar="W",
+                    help="for a fine-tune of the prior or decoder: weight of the loss that holds the output on the "
+                         "real clips' windows to the starting file's (default: the window recipe's; 0: none)")
     ap.add_argument("--steps", type=int, default=None, help="steps per stage (default: the stage's RECIPE entry)")
     ap.add_argument("--batch", type=int, default=None, help="batch per rank (default: the stage's RECIPE entry)")
     ap.add_argument("--lr", type=float, default=None, help="learning rate (default: the stage's RECIPE entry)")
@@ -129,7 +132,8 @@ def main(argv: list[str] | None = None) -> int:
                                     lr=args.lr, seed=args.seed, minutes=left, progress=progress,
                                     mirror=not args.no_mirror, device=device, workers=workers,
                                     snapshot_every=args.snapshot_every, windows=args.windows,
-                                    keep_module=args.keep_module, partner_line_cues=args.partner_line_cues))
+                                    keep_module=args.keep_module, partner_line_cues=args.partner_line_cues,
+                                    anchor=args.anchor))
             if not runs[-1].finished:
                 break
     except RemogenError as exc:

@@ -498,7 +498,7 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
                       "step_aside_rule": "ahead", "face_arrivals": False, "walk_aside": False,
                       "head_shares": [], "head_share_stages": [], "decoder_shown_weight": 1.0,
                       "hhi_copy_stages": [], "wider_phrasings": False, "slowed_walk_stages": [],
-                      "setoff_share": 0.0, "hhi_guidance": 0.0}
+                      "setoff_share": 0.0, "hhi_guidance": 0.0, "anchor": 0.0}
     with pytest.raises(RemogenError, match="unknown window recipe 'odd'; use one of captured, balanced, reversed"):
         train_stage("prior", out, lib, config="tiny", steps=1, progress=False, windows="odd")
 
@@ -528,3 +528,73 @@ def test_the_kicks_recipe_trains_the_decoder_on_reconstruction_alone_with_kicks_
     shown = StageLoss(model, "decoder", shown_weight=1.0)(b, torch.Generator().manual_seed(1))
     assert float(plain[0].detach()) == pytest.approx(plain[1]["rec"], rel=1e-6)     # the VAE's own reconstruction loss
     assert float(shown[0].detach()) > shown[1]["rec"] > 0          # plus the error of the motion as shown
+
+
+def test_an_anchored_fine_tune_holds_the_windows_it_knew_to_the_starting_output(lib):
+    """WindowRecipe.anchor: the prior's and the decoder's output on the anchored windows (real clips and their
+    mirrors) is held to the starting file's; the derived copies being taught learn freely."""
+    import copy
+    from model_runtime.data.library import derived_kind
+    from model_runtime.training.recipe import ANCHORED_KINDS, WINDOW_RECIPES
+    from model_runtime.training.setup import build_samplers
+    from model_runtime.training.stages import StageLoss
+    model = load_model(config="tiny")
+    tr = build_samplers("prior", model, lib, seed=0, rank=0, windows=WINDOW_RECIPES["slow_back_anchored"])[0]
+    kinds = {derived_kind(tr.lib.names[i]) for i, _ in tr.items}
+    assert {"", "mirror"} <= kinds and kinds - set(ANCHORED_KINDS)     # some windows are taught, not anchored
+    for anchored in (True, False):
+        ids = [i for i, _ in tr.items if (derived_kind(tr.lib.names[i]) in ANCHORED_KINDS) == anchored]
+        b = SegmentSampler(tr.lib, ids, model.cfg, model.stats, seed=0).sample(6)
+        assert b.anchored.tolist() == [anchored] * 6
+    b = SegmentSampler(lib, lib.split("train"), model.cfg, model.stats, seed=0).sample(6)
+    start = copy.deepcopy(model)
+    for stage in ("prior", "decoder"):
+        model.eval()              # no dropout: an unchanged module gives exactly the starting output
+        same = StageLoss(model, stage, anchor=start, anchor_weight=2.0)(b, torch.Generator().manual_seed(1))
+        assert same[1]["anchor"] == 0.0
+        moved = copy.deepcopy(model)
+        with torch.no_grad():
+            for p in (moved.denoiser if stage == "prior" else moved.vae).parameters():
+                p.add_(0.05 * torch.randn_like(p))
+        plain = StageLoss(moved, stage)(b, torch.Generator().manual_seed(1))
+        held = StageLoss(moved, stage, anchor=start, anchor_weight=2.0)(b, torch.Generator().manual_seed(1))
+        total, plain_total = float(held[0].detach()), float(plain[0].detach())
+        assert held[1]["anchor"] > 0 and total == pytest.approx(plain_total + 2.0 * held[1]["anchor"], rel=1e-5)
+        b.anchored = torch.zeros(6, dtype=torch.bool)    # only taught windows: nothing to hold
+        free = StageLoss(moved, stage, anchor=start, anchor_weight=2.0)(b, torch.Generator().manual_seed(1))
+        assert free[1]["anchor"] == 0.0 and float(free[0].detach()) == pytest.approx(plain_total, rel=1e-6)
+        b.anchored = None
+    with pytest.raises(ValueError, match="needs the starting model"):
+        StageLoss(model, "hhi", anchor=start, anchor_weight=2.0)
+
+
+def test_an_anchored_recipe_needs_a_trained_stage_to_hold_to(tmp_path, lib):
+    import shutil
+    from model_runtime.errors import RemogenError
+    out = tmp_path / "run"
+    train_stage("vae", out, lib, config="tiny", steps=1, batch=8, val_every=1, val_batches=1, progress=False)
+    with pytest.raises(RemogenError, match="has no trained prior: train it first"):
+        train_stage("prior", out, lib, config="tiny", steps=1, batch=8, progress=False, windows="slow_back_anchored")
+    train_stage("prior", out, lib, config="tiny", steps=1, batch=8, val_every=1, val_batches=1, progress=False)
+    again = tmp_path / "again"
+    again.mkdir()
+    shutil.copy(out / "model.pt", again / "model.pt")
+    train_stage("prior", again, lib, config="tiny", steps=2, batch=8, val_every=2, val_batches=1, progress=False,
+                windows="slow_back_anchored")
+    assert all("anchor" in row for row in read_log(again / "prior.log.jsonl"))
+    assert all("anchor" not in row for row in read_log(out / "prior.log.jsonl"))
+    meta = load_model(again / "model.pt", warn_untrained=False).meta["stages"]["prior"]
+    assert meta["windows"]["anchor"] > 0 and meta["started_from"]["steps"] == 1
+    # resumed past its end, the run holds to the prior it first started from, not to the model.pt it wrote
+    first = load_model(out / "model.pt", warn_untrained=False).denoiser.state_dict()
+    kept = torch.load(again / "prior.state.pt", weights_only=True)["anchor_start"]
+    assert all(torch.equal(first[k], kept[k]) for k in first)
+    train_stage("prior", again, lib, config="tiny", steps=3, batch=8, val_every=3, val_batches=1, progress=False,
+                windows="slow_back_anchored", anchor=0.5)
+    assert load_model(again / "model.pt", warn_untrained=False).meta["stages"]["prior"]["windows"]["anchor"] == 0.5
+    kept = torch.load(again / "prior.state.pt", weights_only=True)["anchor_start"]
+    assert all(torch.equal(first[k], kept[k]) for k in first)
+    with pytest.raises(RemogenError, match="began without an anchor"):
+        train_stage("prior", out, lib, config="tiny", steps=2, batch=8, progress=False, windows="slow_back_anchored")
+    with pytest.raises(RemogenError, match="--anchor -1.0: the weight must be a number >= 0"):
+        train_stage("prior", again, lib, config="tiny", steps=4, progress=False, anchor=-1.0)

@@ -8,6 +8,7 @@ import dataclasses
 
 import gc
 import json
+import math
 import os
 import time
 from pathlib import Path
@@ -27,7 +28,7 @@ from .report import StageRun, say, validation_history
 from .prefetch import batch_stream
 from .samples import SegmentSampler
 from .setup import build_samplers, check_library, decoder_sensitivity, fit_stats
-from .stages import STAGES, TEXT_STAGES, StageLoss, freeze_for, trainable_module
+from .stages import ANCHOR_STAGES, STAGES, TEXT_STAGES, StageLoss, freeze_for, trainable_module
 
 
 def rank_and_world() -> tuple[int, int]:
@@ -41,7 +42,8 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                 ckpt_minutes: float = 3.0, val_every: int = 250, val_batches: int = 4,
                 progress: bool = True, mirror: bool = True, device: str | torch.device = "cpu",
                 workers: int = 0, snapshot_every: int = 0, windows: str = "captured",
-                keep_module: bool = False, partner_line_cues: bool | None = None) -> StageRun:
+                keep_module: bool = False, partner_line_cues: bool | None = None,
+                anchor: float | None = None) -> StageRun:
     """Run (or resume) one stage: what was written and how far it got.
 
     device: where the model trains ("cpu", "cuda", "cuda:1"); the checkpoint files hold CPU tensors either way.
@@ -52,12 +54,16 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     instead of starting over.
     partner_line_cues: an hhi stage started afresh builds its partner encoder with (True) or without (False) the
     line cues (ModelConfig.partner_line_cues); None keeps model.pt's setting.
+    anchor: the window recipe's anchor weight replaced (WindowRecipe.anchor; recorded with the recipe); None keeps it.
     """
     device = torch.device(device)
     if stage not in STAGES:
         raise RemogenError(f"unknown stage {stage!r}; use one of {', '.join(STAGES)}")
     if windows not in WINDOW_RECIPES:
         raise RemogenError(f"unknown window recipe {windows!r}; use one of {', '.join(WINDOW_RECIPES)}")
+    if anchor is not None and not (anchor >= 0.0 and math.isfinite(anchor)):
+        raise RemogenError(f"--anchor {anchor}: the weight must be a number >= 0 (0 trains without holding to the start)")
+    recipe = WINDOW_RECIPES[windows] if anchor is None else dataclasses.replace(WINDOW_RECIPES[windows], anchor=anchor)
     check_library(lib, resolve_config(config))
     rank, world = rank_and_world()
     note = (lambda msg: say(f"{stage}: {msg}")) if progress and rank == 0 else (lambda msg: None)
@@ -107,10 +113,23 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     if st is None and stage == "fwsr":
         note("measuring the decoder's sensitivity ...")
         decoder_sensitivity(model, lib, seed)
-    tr, va = build_samplers(stage, model, lib, seed, rank, note, mirror=mirror, windows=WINDOW_RECIPES[windows])
+    tr, va = build_samplers(stage, model, lib, seed, rank, note, mirror=mirror, windows=recipe)
     model.to(device)
-    loss_mod = StageLoss(model, stage, shown_weight=WINDOW_RECIPES[windows].decoder_shown_weight,
-                         hhi_guidance=WINDOW_RECIPES[windows].hhi_guidance)
+    anchor_weight = recipe.anchor if stage in ANCHOR_STAGES else 0.0
+    start = None
+    if anchor_weight > 0.0:
+        if st is not None and "anchor_start" not in st:
+            raise RemogenError(f"{state_path} began without an anchor, so it has no start to hold to: resume it as it "
+                               f"began, or fine-tune into a new folder")
+        if not started_from:
+            raise RemogenError(f"--windows {windows} holds the {stage} to the file it starts from, and {model_path} "
+                               f"has no trained {stage}: train it first, or pick a recipe without an anchor")
+        start = copy.deepcopy(model)
+        if st is not None:   # a resumed run holds to the module it first started from (model.pt may be newer)
+            trainable_module(start, stage).load_state_dict(st["anchor_start"])
+        start.to(device)
+    loss_mod = StageLoss(model, stage, shown_weight=recipe.decoder_shown_weight, hhi_guidance=recipe.hhi_guidance,
+                         anchor=start, anchor_weight=anchor_weight)
     ddp = (torch.nn.parallel.DistributedDataParallel(loss_mod, device_ids=[device] if device.type == "cuda" else None)
            if world > 1 else loss_mod)
     opt = torch.optim.AdamW(params, lr=lr, weight_decay=0.01)
@@ -146,7 +165,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                          "val_loss": ([None] + [v for _, v in validation_history(log_path)])[-1]}
         if stage in TEXT_STAGES:
             stages[stage]["text_drop"] = TEXT_DROP
-        stages[stage]["windows"] = {"name": windows, **WINDOW_RECIPES[windows].as_meta()}
+        stages[stage]["windows"] = {"name": windows, **recipe.as_meta()}
         if started_from:
             stages[stage]["started_from"] = {k: v for k, v in started_from.items() if k != "started_from"}
         # a VAE copied from another file (--init-vae) brings its own data: its licence carries over
@@ -178,7 +197,8 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         torch.save({"config": model.cfg.to_dict(), "model": model.state_dict(), "meta": model.meta,
                     "optim": opt.state_dict(), "ema": ema.shadow, "ema_updates": ema.updates,
                     "gen": gen.get_state(), "step": step, "wall": wall + time.time() - t_start,
-                    "total": total}, tmp)
+                    "total": total,
+                    **({"anchor_start": trainable_module(start, stage).state_dict()} if start is not None else {})}, tmp)
         os.replace(tmp, state_path)
 
     try:

@@ -103,6 +103,14 @@ TURN_ARRIVAL_WEIGHT = 3.0   # how often their windows are drawn, against their f
 # draws. Measured on val and not shipped: the module learned no better crossing without control from them (README,
 # "Learning the controlled reaction").
 CONTROLLED_COPY_WEIGHT = 20.0
+# Anchored fine-tunes (WindowRecipe.anchor, prior and decoder stages): every snapshot of a plain fine-tune that
+# taught the prior one new thing (slowed or reversed walks) or the decoder the HHI copies also moved something it did
+# before (standing drift, walking yaw, the run or jump kind, the HHI module's footing on the prior's activations).
+# The anchor adds a loss that keeps the stage's output on the windows it already knew (the clips of these derived
+# kinds: "" is a real clip) where the file it started from put it, as in "Learning without Forgetting" (Li and
+# Hoiem, 2016): the new copies' windows learn freely, the others are held to the old predictions.
+ANCHORED_KINDS = ("", "mirror")
+ANCHOR_WEIGHT = 2.0   # against the prior's latent MSE + reconstruction
 
 
 # The decoder stage. The VAE's reconstruction loss weighs all 276 feature channels alike, and the motion shown (the
@@ -151,6 +159,7 @@ class WindowRecipe:
     setoff_share: float = 0.0       # HHI stage: share of a pair's draws from its set-off windows (samples.py SETOFF_*)
     hhi_guidance: float = 0.0       # HHI stage: the loss taken on the prediction guided at this scale (0: conditional)
     slowed_walk_stages: tuple[str, ...] = SLOWED_WALK_STAGES  # the stages that also see slowed forward walks
+    anchor: float = 0.0   # prior and decoder fine-tunes: weight of the loss to the starting file's output (ANCHORED_KINDS)
 
     def as_meta(self) -> dict:
         return {k: _listed(v) for k, v in asdict(self).items()}
@@ -218,6 +227,18 @@ WINDOW_RECIPES = {
     "kicks_slowed": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",),
                                  head_share_stages=("prior", "decoder"), head_shares=KICK_HEAD_SHARES,
                                  decoder_shown_weight=0.0, slowed_walk_stages=("prior",)),
+    # the kicks windows, for the prior slowed and reversed forward walks phrased more ways, and the prior held to its
+    # starting output on the real clips' windows (ANCHORED_KINDS): the new walks learn, the rest stays
+    "slow_back_anchored": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5,
+                                       startup_stages=("prior",), reversal_stages=("prior",),
+                                       slowed_walk_stages=("prior",), head_share_stages=("prior", "decoder"),
+                                       head_shares=KICK_HEAD_SHARES, decoder_shown_weight=0.0, wider_phrasings=True,
+                                       anchor=ANCHOR_WEIGHT),
+    # the kicks_hhi decoder stage held to the starting decoder on the real clips' windows: the decoder learns to
+    # render the HHI copies' sidesteps without moving what it rendered before
+    "hhi_anchored": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",),
+                                 head_share_stages=("prior", "decoder"), head_shares=KICK_HEAD_SHARES,
+                                 decoder_shown_weight=0.0, hhi_copy_stages=("decoder",), anchor=ANCHOR_WEIGHT),
 }
 # FWSR reads the ego's latest frames. At run time those are its own output; trained on real ones only, the
 # refiner learned to continue the real motion and at run time amplified its own: walking forward on the val split

@@ -25,7 +25,7 @@ from ..data.phrasings import pick_phrasing
 from ..data.stretches import split_style
 from ..features import JOINT_DELTA, ROOT_T, FeatureStats, canonicalize, to_canonical, world_points_to_canonical
 from ..skeleton import NUM_JOINTS, forward_kinematics
-from .recipe import (CONTROLLED_COPY_WEIGHT, REVERSAL_WEIGHT, SLOW_WALK_CAPTION, SLOW_WALK_HEADS, SLOW_WALK_SHARE,
+from .recipe import (ANCHORED_KINDS, CONTROLLED_COPY_WEIGHT, REVERSAL_WEIGHT, SLOW_WALK_CAPTION, SLOW_WALK_HEADS, SLOW_WALK_SHARE,
                      SLOW_WALK_SPEED, SLOWED_WALK_WEIGHT, STARTUP_WEIGHT, STILL_CAPTION, STILL_SHARE, STILL_SPEED,
                      STILL_TRAVEL, TURN_ARRIVAL_WEIGHT)
 
@@ -121,6 +121,7 @@ class Batch:
     recent: torch.Tensor | None = None   # (B, H, D) normalised latest real frames before f
     recent_partner: torch.Tensor | None = None  # (B, H, 22, 3)
     recent_present: torch.Tensor | None = None  # (B, H)
+    anchored: torch.Tensor | None = None  # (B,) bool: the window's clip is of a kind the starting file knew (ANCHORED_KINDS)
 
     def to(self, device: torch.device | str, non_blocking: bool = False) -> "Batch":
         """The same batch with every tensor on `device` (the captions stay strings)."""
@@ -250,9 +251,10 @@ class SegmentSampler:
         cfg, h, f = self.cfg, self.cfg.history, self.cfg.future
         picks = torch.multinomial(self.weights, n, replacement=True, generator=self.gen).tolist()
         hist, fut, texts, partners, presents, occs, goals = [], [], [], [], [], [], []
-        frames, recents, rpartners, rpresents = [], [], [], []
+        frames, recents, rpartners, rpresents, anchored = [], [], [], [], []
         for p in picks:
             clip, k = self.items[p]
+            anchored.append(derived_kind(self.lib.names[clip]) in ANCHORED_KINDS)
             feats = self.lib.features(clip)
             s = self._window_start(p, feats.shape[0])
             seg, rot, trans = canonicalize(feats[s:s + self.span])
@@ -285,7 +287,7 @@ class SegmentSampler:
                     pw, pr = torch.zeros(h, NUM_JOINTS, 3), torch.zeros(h, dtype=torch.bool)
                 rpartners.append(pw)
                 rpresents.append(pr)
-        batch = Batch(torch.stack(hist), torch.stack(fut), texts)
+        batch = Batch(torch.stack(hist), torch.stack(fut), texts, anchored=torch.tensor(anchored))
         if partners:
             batch.partner, batch.present = torch.stack(partners), torch.stack(presents)
         if occs:

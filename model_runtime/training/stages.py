@@ -29,6 +29,7 @@ OPTIONAL_STAGES = ("decoder",)
 REQUIRED_STAGES = tuple(s for s in STAGES if s not in OPTIONAL_STAGES)
 TEXT_STAGES = ("prior", "hhi", "hsi")   # the stages that train the denoiser's text input (with caption dropout)
 KL_WEIGHT = 1e-4
+ANCHOR_STAGES = ("prior", "decoder")   # the stages an anchored fine-tune (WindowRecipe.anchor) can hold to their start
 
 
 def own_recent_frames(model: ReMoGenModel, b: Batch, z0: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
@@ -78,11 +79,16 @@ class StageLoss(nn.Module):
     """forward(batch) -> (loss, parts); wrapping this module in DDP gives data-parallel training."""
 
     def __init__(self, model: ReMoGenModel, stage: str, shown_weight: float = DECODER_SHOWN_WEIGHT,
-                 hhi_guidance: float = 0.0) -> None:
+                 hhi_guidance: float = 0.0, anchor: ReMoGenModel | None = None, anchor_weight: float = 0.0) -> None:
         super().__init__()
         self.model, self.stage = model, stage
         self.shown_weight = shown_weight   # the decoder stage's weight of the motion as shown (WindowRecipe)
         self.hhi_guidance = hhi_guidance   # the HHI stage's loss on the guided prediction (WindowRecipe)
+        if anchor_weight > 0.0 and (anchor is None or stage not in ANCHOR_STAGES):
+            raise ValueError(f"an anchored {stage} stage needs the starting model (stages {', '.join(ANCHOR_STAGES)})")
+        # the starting file, frozen, whose output the windows it knew are held to (recipe.ANCHORED_KINDS)
+        self.anchor = anchor.eval().requires_grad_(False) if anchor_weight > 0.0 else None
+        self.anchor_weight = anchor_weight
 
     def forward(self, batch: Batch, gen: torch.Generator) -> tuple[torch.Tensor, dict[str, float]]:
         return getattr(self, f"_{self.stage if self.stage in ('vae', 'fwsr', 'decoder') else 'denoise'}")(batch, gen)
@@ -106,16 +112,34 @@ class StageLoss(nn.Module):
         w = torch.ones_like(shown)
         w[:len(DECODER_FIRST_FRAMES)] = torch.tensor(DECODER_FIRST_FRAMES, dtype=w.dtype)
         shown_loss = (shown * w / w.mean()).mean()
-        return rec + self.shown_weight * shown_loss, {"rec": float(rec.detach()),
-                                                      "shown_m": float(shown.mean().detach()),
-                                                      "first_m": float(shown[0].detach())}
+        parts = {"rec": float(rec.detach()), "shown_m": float(shown.mean().detach()), "first_m": float(shown[0].detach())}
+        loss = rec + self.shown_weight * shown_loss
+        if self.anchor is not None:
+            with torch.no_grad():
+                before = self.anchor.vae.decode(b.hist, z)
+            kept = self._anchored_loss(dec, before, b, nn.functional.smooth_l1_loss)
+            parts["anchor"] = float(kept.detach())
+            loss = loss + self.anchor_weight * kept
+        return loss, parts
+
+    def _anchored_loss(self, out: torch.Tensor, before: torch.Tensor, b: Batch, loss: Callable) -> torch.Tensor:
+        """`loss` between this stage's output and the starting file's on the batch's anchored windows (0 when none)."""
+        keep = b.anchored.to(out.device) if b.anchored is not None else torch.ones(out.shape[0], dtype=torch.bool,
+                                                                                    device=out.device)
+        if not bool(keep.any()):
+            return out.sum() * 0.0
+        return loss(out[keep], before[keep])
 
     def text_tokens(self, b: Batch, gen: torch.Generator) -> torch.Tensor:
+        return self.model.denoiser.text_tokens(*self.text_inputs(b, gen))
+
+    def text_inputs(self, b: Batch, gen: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+        """The captions' embeddings and which of them are dropped (TEXT_DROP) for classifier-free guidance."""
         m = self.model
         dev = m.denoiser.null_text.device
         emb = m.text_encoder.encode(b.text).to(dev)
         drop = (torch.rand(len(b.text), generator=gen) < TEXT_DROP).to(dev)
-        return m.denoiser.text_tokens(emb, drop)
+        return emb, drop
 
     def contexts(self, b: Batch) -> tuple[Contexts, dict[str, float]]:
         m = self.model
@@ -136,10 +160,19 @@ class StageLoss(nn.Module):
         if self.stage == "hhi" and self.hhi_guidance > 1.0:
             x0 = self._guided(b, z_t, t, inject)
         else:
-            x0 = m.denoiser(z_t, t, b.hist, self.text_tokens(b, gen), inject)
+            text = self.text_inputs(b, gen)
+            x0 = m.denoiser(z_t, t, b.hist, m.denoiser.text_tokens(*text), inject)
         latent = nn.functional.mse_loss(x0, z0)
         rec = nn.functional.smooth_l1_loss(m.vae.decode(b.hist, x0), b.fut)
-        return latent + rec, {"latent": float(latent.detach()), "rec": float(rec.detach())}
+        parts = {"latent": float(latent.detach()), "rec": float(rec.detach())}
+        loss = latent + rec
+        if self.anchor is not None:   # the prior only (ANCHOR_STAGES): the same input, caption dropout included
+            with torch.no_grad():
+                before = self.anchor.denoiser(z_t, t, b.hist, self.anchor.denoiser.text_tokens(*text), inject)
+            kept = self._anchored_loss(x0, before, b, nn.functional.mse_loss)
+            parts["anchor"] = float(kept.detach())
+            loss = loss + self.anchor_weight * kept
+        return loss, parts
 
     def _guided(self, b: Batch, z_t: torch.Tensor, t: torch.Tensor, inject: Callable | None) -> torch.Tensor:
         """The x0 prediction guided as the runtime guides it: both passes with the module, the text's push scaled.
