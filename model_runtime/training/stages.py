@@ -166,13 +166,32 @@ class StageLoss(nn.Module):
         rec = nn.functional.smooth_l1_loss(m.vae.decode(b.hist, x0), b.fut)
         parts = {"latent": float(latent.detach()), "rec": float(rec.detach())}
         loss = latent + rec
-        if self.anchor is not None:   # the prior only (ANCHOR_STAGES): the same input, caption dropout included
-            with torch.no_grad():
-                before = self.anchor.denoiser(z_t, t, b.hist, self.anchor.denoiser.text_tokens(*text), inject)
-            kept = self._anchored_loss(x0, before, b, nn.functional.mse_loss)
+        if self.anchor is not None:   # the prior only (ANCHOR_STAGES), which has no interaction module to inject
+            kept = self._prior_anchor(b, z_t, t, text, x0)
             parts["anchor"] = float(kept.detach())
             loss = loss + self.anchor_weight * kept
         return loss, parts
+
+    def _prior_anchor(self, b: Batch, z_t: torch.Tensor, t: torch.Tensor, text: tuple[torch.Tensor, torch.Tensor],
+                      x0: torch.Tensor) -> torch.Tensor:
+        """How far the prior's predictions on the anchored windows moved from the starting prior's: the prediction
+        trained on (caption dropout included) and the unconditional one. The runtime's guidance scales their
+        difference by 6, so a small move of either shows in the motion (measured: holding the first alone let the run
+        kind slow and the standing ego drift)."""
+        m, start = self.model, self.anchor
+        with torch.no_grad():
+            before = start.denoiser(z_t, t, b.hist, start.denoiser.text_tokens(*text), None)
+        held = self._anchored_loss(x0, before, b, nn.functional.mse_loss)
+        keep = b.anchored.to(z_t.device) if b.anchored is not None else torch.ones(len(t), dtype=torch.bool,
+                                                                                   device=z_t.device)
+        if not bool(keep.any()):
+            return held
+        emb, null = text[0][keep], torch.ones(int(keep.sum()), dtype=torch.bool, device=z_t.device)
+        args = (z_t[keep], t[keep], b.hist[keep])
+        with torch.no_grad():
+            before_u = start.denoiser(*args, start.denoiser.text_tokens(emb, null), None)
+        now_u = m.denoiser(*args, m.denoiser.text_tokens(emb, null), None)
+        return held + nn.functional.mse_loss(now_u, before_u)
 
     def _guided(self, b: Batch, z_t: torch.Tensor, t: torch.Tensor, inject: Callable | None) -> torch.Tensor:
         """The x0 prediction guided as the runtime guides it: both passes with the module, the text's push scaled.
