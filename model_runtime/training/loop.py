@@ -62,7 +62,8 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     if windows not in WINDOW_RECIPES:
         raise RemogenError(f"unknown window recipe {windows!r}; use one of {', '.join(WINDOW_RECIPES)}")
     if anchor is not None and not (anchor >= 0.0 and math.isfinite(anchor)):
-        raise RemogenError(f"--anchor {anchor}: the weight must be a number >= 0 (0 trains without holding to the start)")
+        raise RemogenError(f"--anchor {anchor}: the weight must be a number >= 0 (0 trains without holding to the "
+                           "start)")
     recipe = WINDOW_RECIPES[windows] if anchor is None else dataclasses.replace(WINDOW_RECIPES[windows], anchor=anchor)
     check_library(lib, resolve_config(config))
     rank, world = rank_and_world()
@@ -193,12 +194,12 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     def save_state() -> None:
         if rank != 0:
             return
+        anchor_state = {"anchor_start": trainable_module(start, stage).state_dict()} if start is not None else {}
         tmp = state_path.with_suffix(".tmp")
         torch.save({"config": model.cfg.to_dict(), "model": model.state_dict(), "meta": model.meta,
                     "optim": opt.state_dict(), "ema": ema.shadow, "ema_updates": ema.updates,
                     "gen": gen.get_state(), "step": step, "wall": wall + time.time() - t_start,
-                    "total": total,
-                    **({"anchor_start": trainable_module(start, stage).state_dict()} if start is not None else {})}, tmp)
+                    "total": total, **anchor_state}, tmp)
         os.replace(tmp, state_path)
 
     try:

@@ -110,7 +110,7 @@ CONTROLLED_COPY_WEIGHT = 20.0
 # kinds: "" is a real clip) where the file it started from put it, as in "Learning without Forgetting" (Li and
 # Hoiem, 2016): the new copies' windows learn freely, the others are held to the old predictions.
 ANCHORED_KINDS = ("", "mirror")
-ANCHOR_WEIGHT = 2.0   # against the stage's own loss; measured at 1, 2 and 4 (README, "Anchored fine-tunes")
+ANCHOR_WEIGHT = 2.0   # against the stage's own loss; measured from 1 to 8 (README, "Anchored fine-tunes")
 
 
 # The decoder stage. The VAE's reconstruction loss weighs all 276 feature channels alike, and the motion shown (the
@@ -159,7 +159,7 @@ class WindowRecipe:
     setoff_share: float = 0.0       # HHI stage: share of a pair's draws from its set-off windows (samples.py SETOFF_*)
     hhi_guidance: float = 0.0       # HHI stage: the loss taken on the prediction guided at this scale (0: conditional)
     slowed_walk_stages: tuple[str, ...] = SLOWED_WALK_STAGES  # the stages that also see slowed forward walks
-    anchor: float = 0.0   # prior and decoder fine-tunes: weight of the loss to the starting file's output (ANCHORED_KINDS)
+    anchor: float = 0.0   # prior and decoder fine-tunes: weight of the loss to the starting output (ANCHORED_KINDS)
 
     def as_meta(self) -> dict:
         return {k: _listed(v) for k, v in asdict(self).items()}

@@ -25,9 +25,9 @@ from ..data.phrasings import pick_phrasing
 from ..data.stretches import split_style
 from ..features import JOINT_DELTA, ROOT_T, FeatureStats, canonicalize, to_canonical, world_points_to_canonical
 from ..skeleton import NUM_JOINTS, forward_kinematics
-from .recipe import (ANCHORED_KINDS, CONTROLLED_COPY_WEIGHT, REVERSAL_WEIGHT, SLOW_WALK_CAPTION, SLOW_WALK_HEADS, SLOW_WALK_SHARE,
-                     SLOW_WALK_SPEED, SLOWED_WALK_WEIGHT, STARTUP_WEIGHT, STILL_CAPTION, STILL_SHARE, STILL_SPEED,
-                     STILL_TRAVEL, TURN_ARRIVAL_WEIGHT)
+from .recipe import (ANCHORED_KINDS, CONTROLLED_COPY_WEIGHT, REVERSAL_WEIGHT, SLOW_WALK_CAPTION, SLOW_WALK_HEADS,
+                     SLOW_WALK_SHARE, SLOW_WALK_SPEED, SLOWED_WALK_WEIGHT, STARTUP_WEIGHT, STILL_CAPTION, STILL_SHARE,
+                     STILL_SPEED, STILL_TRAVEL, TURN_ARRIVAL_WEIGHT)
 
 FPS = 10.0
 
@@ -121,7 +121,7 @@ class Batch:
     recent: torch.Tensor | None = None   # (B, H, D) normalised latest real frames before f
     recent_partner: torch.Tensor | None = None  # (B, H, 22, 3)
     recent_present: torch.Tensor | None = None  # (B, H)
-    anchored: torch.Tensor | None = None  # (B,) bool: the window's clip is of a kind the starting file knew (ANCHORED_KINDS)
+    anchored: torch.Tensor | None = None  # (B,) bool: a real clip's window or its mirror's (recipe.ANCHORED_KINDS)
 
     def to(self, device: torch.device | str, non_blocking: bool = False) -> "Batch":
         """The same batch with every tensor on `device` (the captions stay strings)."""

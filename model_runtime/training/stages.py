@@ -112,7 +112,8 @@ class StageLoss(nn.Module):
         w = torch.ones_like(shown)
         w[:len(DECODER_FIRST_FRAMES)] = torch.tensor(DECODER_FIRST_FRAMES, dtype=w.dtype)
         shown_loss = (shown * w / w.mean()).mean()
-        parts = {"rec": float(rec.detach()), "shown_m": float(shown.mean().detach()), "first_m": float(shown[0].detach())}
+        parts = {"rec": float(rec.detach()), "shown_m": float(shown.mean().detach()),
+                 "first_m": float(shown[0].detach())}
         loss = rec + self.shown_weight * shown_loss
         if self.anchor is not None:
             with torch.no_grad():
@@ -122,16 +123,19 @@ class StageLoss(nn.Module):
             loss = loss + self.anchor_weight * kept
         return loss, parts
 
+    @staticmethod
+    def _anchored_rows(b: Batch, rows: int, device: torch.device) -> torch.Tensor:
+        """(rows,) bool: the batch's windows held to the starting file (all of them when the batch does not say)."""
+        if b.anchored is None:
+            return torch.ones(rows, dtype=torch.bool, device=device)
+        return b.anchored.to(device)
+
     def _anchored_loss(self, out: torch.Tensor, before: torch.Tensor, b: Batch, loss: Callable) -> torch.Tensor:
         """`loss` between this stage's output and the starting file's on the batch's anchored windows (0 when none)."""
-        keep = b.anchored.to(out.device) if b.anchored is not None else torch.ones(out.shape[0], dtype=torch.bool,
-                                                                                    device=out.device)
+        keep = self._anchored_rows(b, out.shape[0], out.device)
         if not bool(keep.any()):
             return out.sum() * 0.0
         return loss(out[keep], before[keep])
-
-    def text_tokens(self, b: Batch, gen: torch.Generator) -> torch.Tensor:
-        return self.model.denoiser.text_tokens(*self.text_inputs(b, gen))
 
     def text_inputs(self, b: Batch, gen: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
         """The captions' embeddings and which of them are dropped (TEXT_DROP) for classifier-free guidance."""
@@ -182,8 +186,7 @@ class StageLoss(nn.Module):
         with torch.no_grad():
             before = start.denoiser(z_t, t, b.hist, start.denoiser.text_tokens(*text), None)
         held = self._anchored_loss(x0, before, b, nn.functional.mse_loss)
-        keep = b.anchored.to(z_t.device) if b.anchored is not None else torch.ones(len(t), dtype=torch.bool,
-                                                                                   device=z_t.device)
+        keep = self._anchored_rows(b, len(t), z_t.device)
         if not bool(keep.any()):
             return held
         emb, null = text[0][keep], torch.ones(int(keep.sum()), dtype=torch.bool, device=z_t.device)
