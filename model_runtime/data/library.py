@@ -24,6 +24,11 @@ LICENCES = {"cmu": "CMU Graphics Lab Motion Capture Database (commercial use all
             "bandai": "Bandai-Namco-Research-Motiondataset, CC BY-NC 4.0 (non-commercial)"}
 
 
+def non_commercial(sources, meta: dict | None = None) -> bool:
+    """Whether weights trained on these dataset tags (and on what a model file's meta records) are non-commercial."""
+    return "bandai" in set(sources) | set((meta or {}).get("sources", [])) or bool((meta or {}).get("non_commercial"))
+
+
 DERIVED = "#"   # a clip made from another is named `<source name>#<variant>` (data/turns.py)
 
 

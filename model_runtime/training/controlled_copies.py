@@ -42,7 +42,7 @@ from ..behaviour.scenarios import (APPROACH_AFTER, CROSS_FRAMES, CROSS_MISS, CRO
                                    Episode, crossing_point)
 from ..data.detours import BLEND_FRAMES, STAND_FRAMES
 from ..data.face_arrivals import ARRIVE_DISTANCE, arriving_partner
-from ..data.library import ClipLibrary
+from ..data.library import ClipLibrary, non_commercial
 from ..data.meeting import MIN_STAND
 from ..data.new_clips import NewClip, copy_name, extend_library, new_clip, partner_clip_name
 from ..data.pairs import ClipCache
@@ -125,7 +125,7 @@ def roll_out(model: "ReMoGenModel", ep: Encounter) -> tuple[np.ndarray, np.ndarr
 
 def model_licence_tag(model: "ReMoGenModel") -> str:
     """The dataset tag of motion the model made: its most restrictive training data."""
-    return "bandai" if model.meta.get("non_commercial") or "bandai" in model.meta.get("sources", []) else "cmu"
+    return "bandai" if non_commercial((), model.meta) else "cmu"
 
 
 def controlled_copies(model: "ReMoGenModel", lib: ClipLibrary, episodes: int, seed: int = SEED,

@@ -18,7 +18,7 @@ import torch.distributed as dist
 
 from ..checkpoint import load_model, save_model
 from ..config import ModelConfig, resolve_config
-from ..data.library import ClipLibrary
+from ..data.library import ClipLibrary, non_commercial
 from ..devices import device_name
 from ..errors import RemogenError
 from ..model import ReMoGenModel
@@ -172,7 +172,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         # a VAE copied from another file (--init-vae) brings its own data: its licence carries over
         sources = set(lib.sources) | set(meta.get("sources", []))
         meta.update({"trained": True, "stages": stages, "sources": sorted(sources),
-                     "non_commercial": "bandai" in sources or bool(meta.get("non_commercial", False))})
+                     "non_commercial": non_commercial(sources, meta)})
         return meta
 
     def with_own_sensitivity(m: ReMoGenModel) -> ReMoGenModel:

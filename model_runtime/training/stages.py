@@ -75,6 +75,13 @@ def freeze_for(model: ReMoGenModel, stage: str) -> list[nn.Parameter]:
     return params
 
 
+def _anchored_rows(b: Batch, out: torch.Tensor) -> torch.Tensor:
+    """(B,) bool on `out`'s device: the batch's windows held to the starting file (all when the batch does not say)."""
+    if b.anchored is None:
+        return torch.ones(out.shape[0], dtype=torch.bool, device=out.device)
+    return b.anchored.to(out.device)
+
+
 class StageLoss(nn.Module):
     """forward(batch) -> (loss, parts); wrapping this module in DDP gives data-parallel training."""
 
@@ -116,26 +123,15 @@ class StageLoss(nn.Module):
                  "first_m": float(shown[0].detach())}
         loss = rec + self.shown_weight * shown_loss
         if self.anchor is not None:
-            with torch.no_grad():
-                before = self.anchor.vae.decode(b.hist, z)
-            kept = self._anchored_loss(dec, before, b, nn.functional.smooth_l1_loss)
-            parts["anchor"] = float(kept.detach())
-            loss = loss + self.anchor_weight * kept
+            keep = _anchored_rows(b, dec)
+            held = dec.sum() * 0.0
+            if bool(keep.any()):
+                with torch.no_grad():
+                    before = self.anchor.vae.decode(b.hist[keep], z[keep])
+                held = nn.functional.smooth_l1_loss(dec[keep], before)
+            parts["anchor"] = float(held.detach())
+            loss = loss + self.anchor_weight * held
         return loss, parts
-
-    @staticmethod
-    def _anchored_rows(b: Batch, rows: int, device: torch.device) -> torch.Tensor:
-        """(rows,) bool: the batch's windows held to the starting file (all of them when the batch does not say)."""
-        if b.anchored is None:
-            return torch.ones(rows, dtype=torch.bool, device=device)
-        return b.anchored.to(device)
-
-    def _anchored_loss(self, out: torch.Tensor, before: torch.Tensor, b: Batch, loss: Callable) -> torch.Tensor:
-        """`loss` between this stage's output and the starting file's on the batch's anchored windows (0 when none)."""
-        keep = self._anchored_rows(b, out.shape[0], out.device)
-        if not bool(keep.any()):
-            return out.sum() * 0.0
-        return loss(out[keep], before[keep])
 
     def text_inputs(self, b: Batch, gen: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
         """The captions' embeddings and which of them are dropped (TEXT_DROP) for classifier-free guidance."""
@@ -183,18 +179,17 @@ class StageLoss(nn.Module):
         difference by 6, so a small move of either shows in the motion (measured: holding the first alone let the run
         kind slow and the standing ego drift)."""
         m, start = self.model, self.anchor
-        with torch.no_grad():
-            before = start.denoiser(z_t, t, b.hist, start.denoiser.text_tokens(*text), None)
-        held = self._anchored_loss(x0, before, b, nn.functional.mse_loss)
-        keep = self._anchored_rows(b, len(t), z_t.device)
+        keep = _anchored_rows(b, x0)
         if not bool(keep.any()):
-            return held
-        emb, null = text[0][keep], torch.ones(int(keep.sum()), dtype=torch.bool, device=z_t.device)
+            return x0.sum() * 0.0
         args = (z_t[keep], t[keep], b.hist[keep])
+        emb, drop = text[0][keep], text[1][keep]
+        null = torch.ones_like(drop)
         with torch.no_grad():
+            before = start.denoiser(*args, start.denoiser.text_tokens(emb, drop), None)
             before_u = start.denoiser(*args, start.denoiser.text_tokens(emb, null), None)
         now_u = m.denoiser(*args, m.denoiser.text_tokens(emb, null), None)
-        return held + nn.functional.mse_loss(now_u, before_u)
+        return nn.functional.mse_loss(x0[keep], before) + nn.functional.mse_loss(now_u, before_u)
 
     def _guided(self, b: Batch, z_t: torch.Tensor, t: torch.Tensor, inject: Callable | None) -> torch.Tensor:
         """The x0 prediction guided as the runtime guides it: both passes with the module, the text's push scaled.
