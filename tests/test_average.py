@@ -6,7 +6,7 @@ import torch
 
 from model_runtime.checkpoint import load_model, save_model
 from model_runtime.errors import RemogenError
-from model_runtime.training.average import average_priors, main, parse_source
+from model_runtime.training.average import average_priors, average_stage, main, parse_source
 
 
 def _pair():
@@ -61,3 +61,25 @@ def test_the_command_writes_the_average_and_records_its_sources(tmp_path, capsys
     bad = tmp_path / "bad.pt"
     assert main([str(tmp_path / "a.pt"), f"{tmp_path / 'b.pt'}:-1", "--out", str(bad)]) == 2
     assert not bad.exists() and "positive" in capsys.readouterr().err
+
+
+def test_the_decoder_alone_can_be_averaged_and_the_encoder_must_match():
+    a = load_model(config="tiny", seed=0)
+    b = copy.deepcopy(a)
+    decoder = b.vae.decoder_parts()
+    with torch.no_grad():
+        for p in decoder.parameters():
+            p.add_(1.0)
+    encoder_before = {k: v.clone() for k, v in a.vae.in_proj.state_dict().items()}
+    ref = {k: v.clone() for k, v in a.vae.decoder_parts().state_dict().items()}
+    out = average_stage([a, b], [1.0, 1.0], "decoder")
+    for k, v in out.vae.decoder_parts().state_dict().items():
+        assert torch.allclose(v, ref[k] + 0.5, atol=1e-6), k
+    assert all(torch.equal(v, encoder_before[k]) for k, v in out.vae.in_proj.state_dict().items())
+    c = copy.deepcopy(a)
+    with torch.no_grad():
+        next(c.vae.in_proj.parameters()).add_(0.1)
+    with pytest.raises(RemogenError, match="outside the decoder"):
+        average_stage([a, c], [1.0, 1.0], "decoder")
+    with pytest.raises(RemogenError, match="unknown stage"):
+        average_stage([a, b], [1.0, 1.0], "encoder")

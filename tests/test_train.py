@@ -278,6 +278,93 @@ def test_the_hhi_loss_can_be_taken_on_the_prediction_guided_as_the_runtime_guide
     assert StageLoss(model, "hhi").hhi_guidance == 0.0
 
 
+def _pair_batch(lib, model, offset: float, n_rows: int = 4):
+    """HHI windows of clip 0 with a partner that copies the ego's own joints, moved `offset` m sideways."""
+    import numpy as np
+    from model_runtime.data.pairs import HHIPair
+    from model_runtime.training.samples import world_joints
+    partner = world_joints(lib, 0).numpy().astype(np.float32).copy()
+    partner[:, :, 0] += offset
+    s = SegmentSampler(lib, [0], model.cfg, model.stats, seed=0, pairs=[HHIPair(0, partner, "approach_face")])
+    return s.sample(n_rows)
+
+
+def test_the_partner_future_is_where_the_partner_is_while_the_segment_plays(lib):
+    from model_runtime.features import features_to_pose
+    from model_runtime.skeleton import forward_kinematics
+    from model_runtime.training.recipe import ROLLOUT_LOOK_AHEAD
+    model = load_model(config="tiny")
+    b = _pair_batch(lib, model, 0.0)
+    f = model.cfg.future
+    assert b.partner_future.shape == (4, f + ROLLOUT_LOOK_AHEAD, 22, 3)
+    assert b.future_present.shape == (4, f + ROLLOUT_LOOK_AHEAD) and bool(b.future_present[:, :f].all())
+    # the partner copies the ego, so over the segment's frames it is exactly the real future's body
+    real = forward_kinematics(*features_to_pose(model.stats.denormalize(b.fut)))[0]
+    assert torch.allclose(real, b.partner_future[:, :f], atol=2e-3)
+    moved = _pair_batch(lib, model, 1.5)
+    assert torch.allclose((moved.partner_future[:, :f] - b.partner_future[:, :f]).norm(dim=-1),
+                          torch.full((4, f, 22), 1.5), atol=2e-3)
+
+
+def test_the_clearance_charge_counts_each_frame_by_its_nearest_joints():
+    from model_runtime.training.recipe import ROLLOUT_MARGIN
+    from model_runtime.training.stages import clearance_charge
+    ego = torch.zeros(1, 2, 22, 3)
+    ego[0, 1, :, 0] = 1.0                                   # frame 0 at x = 0, frame 1 (the last) at x = 1
+    partner = torch.full((1, 4, 22, 3), 50.0)               # far away ...
+    present = torch.ones(1, 4, dtype=torch.bool)
+    assert float(clearance_charge(ego, partner, present)) == 0.0
+    partner[0, 0, 3] = torch.tensor([0.1, 0.0, 0.0])        # ... but one joint 0.1 m from the ego in frame 0
+    partner[0, 3, 7] = torch.tensor([1.0, 0.2, 0.0])        # and one 0.2 m from the last pose, held past the segment
+    want = ((ROLLOUT_MARGIN - 0.1) ** 2 + (ROLLOUT_MARGIN - 0.2) ** 2) / 4
+    assert abs(float(clearance_charge(ego, partner, present)) - want) < 1e-6
+    present[0, 3] = False                                   # a frame where the partner is not there is not charged
+    assert abs(float(clearance_charge(ego, partner, present)) - (ROLLOUT_MARGIN - 0.1) ** 2 / 3) < 1e-6
+
+
+def test_the_rollout_loss_trains_the_module_through_the_sampled_segment(lib):
+    import copy
+    from model_runtime.training.recipe import WINDOW_RECIPES
+    from model_runtime.training.stages import StageLoss, freeze_for, rollout_joints
+    model = load_model(config="tiny")
+    params = freeze_for(model, "hhi")
+    model.mims["hhi"].eval()       # no dropout: the same noise gives the same segment twice
+    weight = WINDOW_RECIPES["setoffs_rollout"].hhi_rollout
+    start = copy.deepcopy(model)
+    loss = StageLoss(model, "hhi", hhi_guidance=6.0, hhi_rollout=weight, anchor=start, anchor_weight=1.0)
+    b = _pair_batch(lib, model, 0.0)
+    with torch.no_grad():
+        ego = rollout_joints(model, b, slice(0, 4), torch.Generator().manual_seed(0))
+    b.partner_future[:, :ego.shape[1]] = ego + torch.tensor([0.1, 0.0, 0.0])   # the partner beside the sampled body
+    gen = torch.Generator().manual_seed(0)
+    rolled = loss._rollout_loss(b, gen)
+    assert set(rolled) == {"clear", "seam", "skate", "glide", "kept"}
+    assert float(rolled["clear"].detach()) > 0.0 and float(rolled["seam"].detach()) > 0.0
+    # the starting module sampled from the same noise: nothing has moved yet, and the noise drawn after is the same
+    assert float(rolled["kept"].detach()) < 1e-10
+    assert torch.equal(gen.get_state(), _drawn_once(model, b))
+    (rolled["clear"] + rolled["seam"]).backward()
+    assert any(p.grad is not None and bool(p.grad.abs().sum() > 0) for p in params)
+    assert all(p.grad is None for p in model.denoiser.parameters())
+    value, parts = loss(b, torch.Generator().manual_seed(0))
+    assert {"clear", "seam", "skate", "glide", "kept"} <= set(parts) and torch.isfinite(value)
+    assert "clear" not in StageLoss(model, "hhi")(b, torch.Generator().manual_seed(0))[1]
+    with torch.no_grad():          # a moved module is held to the segments the starting one samples
+        next(model.mims["hhi"].parameters()).add_(0.5)
+    assert float(loss._rollout_loss(b, torch.Generator().manual_seed(0))["kept"]) > 0.0
+    with pytest.raises(ValueError, match="hhi_rollout"):
+        StageLoss(model, "hhi", anchor=start, anchor_weight=1.0)
+
+
+def _drawn_once(model, b) -> torch.Tensor:
+    """The generator's state after one segment sampled for the first 4 windows (from seed 0)."""
+    from model_runtime.training.stages import rollout_joints
+    gen = torch.Generator().manual_seed(0)
+    with torch.no_grad():
+        rollout_joints(model, b, slice(0, 4), gen)
+    return gen.get_state()
+
+
 def test_detour_scenes_are_drawn_more_often(lib):
     import numpy as np
     from model_runtime.data.pairs import HSIScene
@@ -498,7 +585,8 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
                       "step_aside_rule": "ahead", "face_arrivals": False, "walk_aside": False,
                       "head_shares": [], "head_share_stages": [], "decoder_shown_weight": 1.0,
                       "hhi_copy_stages": [], "wider_phrasings": False, "slowed_walk_stages": [],
-                      "setoff_share": 0.0, "hhi_guidance": 0.0, "anchor": 0.0}
+                      "setoff_share": 0.0, "hhi_guidance": 0.0, "anchor": 0.0,
+                      "hhi_rollout": 0.0}
     with pytest.raises(RemogenError, match="unknown window recipe 'odd'; use one of captured, balanced, reversed"):
         train_stage("prior", out, lib, config="tiny", steps=1, progress=False, windows="odd")
 
@@ -565,6 +653,8 @@ def test_an_anchored_fine_tune_holds_the_windows_it_knew_to_the_starting_output(
         assert free[1]["anchor"] == 0.0 and float(free[0].detach()) == pytest.approx(plain_total, rel=1e-6)
         b.anchored = None
     with pytest.raises(ValueError, match="needs the starting model"):
+        StageLoss(model, "hsi", anchor=start, anchor_weight=2.0)
+    with pytest.raises(ValueError, match="hhi_rollout"):      # the HHI stage holds only its sampled segments
         StageLoss(model, "hhi", anchor=start, anchor_weight=2.0)
 
 

@@ -27,7 +27,7 @@ from ..features import JOINT_DELTA, ROOT_T, FeatureStats, canonicalize, to_canon
 from ..skeleton import NUM_JOINTS, forward_kinematics
 from .recipe import (ANCHORED_KINDS, CONTROLLED_COPY_WEIGHT, REVERSAL_WEIGHT, SLOW_WALK_CAPTION, SLOW_WALK_HEADS,
                      SLOW_WALK_SHARE, SLOW_WALK_SPEED, SLOWED_WALK_WEIGHT, STARTUP_WEIGHT, STILL_CAPTION, STILL_SHARE,
-                     STILL_SPEED, STILL_TRAVEL, TURN_ARRIVAL_WEIGHT)
+                     STILL_SPEED, STILL_TRAVEL, TURN_ARRIVAL_WEIGHT, ROLLOUT_LOOK_AHEAD)
 
 FPS = 10.0
 
@@ -122,6 +122,8 @@ class Batch:
     recent_partner: torch.Tensor | None = None  # (B, H, 22, 3)
     recent_present: torch.Tensor | None = None  # (B, H)
     anchored: torch.Tensor | None = None  # (B,) bool: a real clip's window or its mirror's (recipe.ANCHORED_KINDS)
+    partner_future: torch.Tensor | None = None   # (B, F + L, 22, 3) canonical: the partner over the segment's
+    future_present: torch.Tensor | None = None   # (B, F + L) bool        frames and ROLLOUT_LOOK_AHEAD after
 
     def to(self, device: torch.device | str, non_blocking: bool = False) -> "Batch":
         """The same batch with every tensor on `device` (the captions stay strings)."""
@@ -251,7 +253,7 @@ class SegmentSampler:
         cfg, h, f = self.cfg, self.cfg.history, self.cfg.future
         picks = torch.multinomial(self.weights, n, replacement=True, generator=self.gen).tolist()
         hist, fut, texts, partners, presents, occs, goals = [], [], [], [], [], [], []
-        frames, recents, rpartners, rpresents, anchored = [], [], [], [], []
+        frames, recents, rpartners, rpresents, anchored, futures, fpresents = [], [], [], [], [], [], []
         for p in picks:
             clip, k = self.items[p]
             anchored.append(derived_kind(self.lib.names[clip]) in ANCHORED_KINDS)
@@ -268,6 +270,11 @@ class SegmentSampler:
                 pw, pr = self._partner_window(k, end, cfg.partner_window, rot, trans)
                 partners.append(pw)
                 presents.append(pr)
+                # where the partner really is while the segment plays and just after (the rollout clearance loss,
+                # not an input): the segment's last pose must keep out of the partner's way, as control asks
+                fw, fp = self._partner_window(k, s + h + f - 1 + ROLLOUT_LOOK_AHEAD, f + ROLLOUT_LOOK_AHEAD, rot, trans)
+                futures.append(fw)
+                fpresents.append(fp)
             if self.scenes is not None:
                 sc = self.scenes[k]
                 m = np.eye(4, dtype=np.float32)
@@ -290,6 +297,7 @@ class SegmentSampler:
         batch = Batch(torch.stack(hist), torch.stack(fut), texts, anchored=torch.tensor(anchored))
         if partners:
             batch.partner, batch.present = torch.stack(partners), torch.stack(presents)
+            batch.partner_future, batch.future_present = torch.stack(futures), torch.stack(fpresents)
         if occs:
             batch.occupancy, batch.goal = torch.stack(occs), torch.stack(goals)
         if fwsr:

@@ -17,10 +17,13 @@ from typing import Callable
 import torch
 from torch import nn
 
-from ..model import Contexts, ReMoGenModel, noise
+from ..errors import DEFAULT_GUIDANCE
+from ..model import Contexts, DiffusionJob, ReMoGenModel, noise
 from ..features import features_to_pose
 from ..skeleton import forward_kinematics
-from .recipe import DECODER_FIRST_FRAMES, DECODER_SHOWN_WEIGHT, FWSR_OWN_SHARE, TEXT_DROP
+from ..control import FPS, ControlConfig, foot_cost, glide_cost, seam_cost
+from .recipe import (DECODER_FIRST_FRAMES, DECODER_SHOWN_WEIGHT, FWSR_OWN_SHARE, ROLLOUT_GLIDE_WEIGHT, ROLLOUT_MARGIN,
+                     ROLLOUT_ROWS, ROLLOUT_SEAM_WEIGHT, ROLLOUT_SKATE_WEIGHT, TEXT_DROP)
 from .samples import Batch
 
 STAGES = ("vae", "prior", "hhi", "hsi", "fwsr", "decoder")
@@ -29,7 +32,9 @@ OPTIONAL_STAGES = ("decoder",)
 REQUIRED_STAGES = tuple(s for s in STAGES if s not in OPTIONAL_STAGES)
 TEXT_STAGES = ("prior", "hhi", "hsi")   # the stages that train the denoiser's text input (with caption dropout)
 KL_WEIGHT = 1e-4
-ANCHOR_STAGES = ("prior", "decoder")   # the stages an anchored fine-tune (WindowRecipe.anchor) can hold to their start
+# The stages an anchored fine-tune (WindowRecipe.anchor) can hold to their start; the HHI stage holds the segments its
+# rollout loss samples (WindowRecipe.hhi_rollout) to those the starting module samples from the same noise.
+ANCHOR_STAGES = ("prior", "decoder", "hhi")
 
 
 def own_recent_frames(model: ReMoGenModel, b: Batch, z0: torch.Tensor, gen: torch.Generator) -> torch.Tensor:
@@ -53,6 +58,30 @@ def shown_joint_error(stats, decoded_n: torch.Tensor, real_n: torch.Tensor) -> t
     with torch.no_grad():
         real = forward_kinematics(*features_to_pose(stats.denormalize(real_n)))[0]
     return (shown - real).norm(dim=-1).mean((0, 2))
+
+
+def clearance_charge(ego: torch.Tensor, partner: torch.Tensor, present: torch.Tensor) -> torch.Tensor:
+    """Mean over the frames where the partner is there of relu(ROLLOUT_MARGIN - clearance)^2, clearance being the
+    distance between the nearest joints of the two bodies. ego (R, F, 22, 3); partner (R, F + L, 22, 3) and present
+    (R, F + L): its last L frames are checked against the ego's last pose (a segment must end out of the way of
+    where the partner goes next, as test-time control asks)."""
+    last = ego[:, -1:].expand(-1, partner.shape[1] - ego.shape[1], -1, -1)
+    held = torch.cat((ego, last), 1)
+    gap = torch.cdist(held.flatten(0, 1), partner.flatten(0, 1)).amin((1, 2)).view(present.shape)
+    return (torch.relu(ROLLOUT_MARGIN - gap).pow(2) * present).sum() / present.sum().clamp_min(1)
+
+
+def rollout_joints(model: ReMoGenModel, b: Batch, rows: slice, gen: torch.Generator) -> torch.Tensor:
+    """(R, F, 22, 3) the ego's joints over the segment `model` samples for the rows' windows, in their canonical
+    frame, with the HHI module at alpha 1 and the runtime's guidance."""
+    hist = b.hist[rows]
+    with torch.no_grad():
+        emb = model.text_encoder.encode(b.text[rows]).to(hist.device)
+    ctx = model.encode_contexts(b.partner[rows], b.present[rows], None, None, {"hhi": 1.0})
+    job = DiffusionJob(model, hist, emb, ctx, {"hhi": 1.0}, DEFAULT_GUIDANCE, gen)
+    job.advance(model.cfg.diffusion_steps)
+    dec = model.vae.decode(hist, job.result)
+    return forward_kinematics(*features_to_pose(model.stats.denormalize(dec)))[0]
 
 
 def trainable_module(model: ReMoGenModel, stage: str) -> nn.Module:
@@ -86,13 +115,17 @@ class StageLoss(nn.Module):
     """forward(batch) -> (loss, parts); wrapping this module in DDP gives data-parallel training."""
 
     def __init__(self, model: ReMoGenModel, stage: str, shown_weight: float = DECODER_SHOWN_WEIGHT,
-                 hhi_guidance: float = 0.0, anchor: ReMoGenModel | None = None, anchor_weight: float = 0.0) -> None:
+                 hhi_guidance: float = 0.0, anchor: ReMoGenModel | None = None, anchor_weight: float = 0.0,
+                 hhi_rollout: float = 0.0) -> None:
         super().__init__()
         self.model, self.stage = model, stage
         self.shown_weight = shown_weight   # the decoder stage's weight of the motion as shown (WindowRecipe)
         self.hhi_guidance = hhi_guidance   # the HHI stage's loss on the guided prediction (WindowRecipe)
+        self.hhi_rollout = hhi_rollout     # the HHI stage's clearance loss on sampled segments (WindowRecipe)
         if anchor_weight > 0.0 and (anchor is None or stage not in ANCHOR_STAGES):
             raise ValueError(f"an anchored {stage} stage needs the starting model (stages {', '.join(ANCHOR_STAGES)})")
+        if anchor_weight > 0.0 and stage == "hhi" and hhi_rollout <= 0.0:
+            raise ValueError("an anchored hhi stage holds the segments its rollout loss samples: give hhi_rollout > 0")
         # the starting file, frozen, whose output the windows it knew are held to (recipe.ANCHORED_KINDS)
         self.anchor = anchor.eval().requires_grad_(False) if anchor_weight > 0.0 else None
         self.anchor_weight = anchor_weight
@@ -166,11 +199,47 @@ class StageLoss(nn.Module):
         rec = nn.functional.smooth_l1_loss(m.vae.decode(b.hist, x0), b.fut)
         parts = {"latent": float(latent.detach()), "rec": float(rec.detach())}
         loss = latent + rec
-        if self.anchor is not None:   # the prior only (ANCHOR_STAGES), which has no interaction module to inject
+        if self.anchor is not None and self.stage == "prior":   # no interaction module to inject
             kept = self._prior_anchor(b, z_t, t, text, x0)
             parts["anchor"] = float(kept.detach())
             loss = loss + self.anchor_weight * kept
+        if self.stage == "hhi" and self.hhi_rollout > 0.0 and b.partner_future is not None:
+            rolled = self._rollout_loss(b, gen)
+            parts.update({k: float(v.detach()) for k, v in rolled.items()})
+            loss = loss + self.hhi_rollout * rolled["clear"] + ROLLOUT_SEAM_WEIGHT * rolled["seam"] \
+                + ROLLOUT_SKATE_WEIGHT * rolled["skate"] + ROLLOUT_GLIDE_WEIGHT * rolled["glide"] \
+                + self.anchor_weight * rolled["kept"]
         return loss, parts
+
+    def _rollout_loss(self, b: Batch, gen: torch.Generator) -> dict[str, torch.Tensor]:
+        """What the segments the model samples for the first ROLLOUT_ROWS windows cost, sampled as the runtime samples
+        them (every denoising step, guidance with its eased last step, the module at alpha 1; the gradient through
+        all of it): "clear" the clearance charge (clearance_charge); control's costs: "seam" the joints' acceleration
+        across the segment's start, "skate" the planted toes' slide and "glide" the pelvis's accelerations past a
+        walk's (each measured: without them the module learned to slide and then to glide out of the way); "kept" (with an anchor) how far
+        the segments moved from those the starting module samples from the same noise. The denoising loss scores
+        one step from a real future, and what it fits there did not come out of the sampled steps from a still
+        history (README, "Learning the controlled reaction")."""
+        rows = slice(0, min(ROLLOUT_ROWS, b.hist.shape[0]))   # the batch's order is random
+        drawn_from = gen.get_state()
+        ego = rollout_joints(self.model, b, rows, gen)
+        out = {"clear": clearance_charge(ego, b.partner_future[rows].to(ego.device),
+                                         b.future_present[rows].to(ego.device))}
+        m = self.model
+        before = forward_kinematics(*features_to_pose(m.stats.denormalize(b.hist[rows, -2:])))[0]   # (R, 2, 22, 3)
+        out["seam"] = seam_cost(ego, before[:, 1], before[:, 0]).mean()
+        cc = ControlConfig()
+        out["skate"] = foot_cost(ego, before[:, 1], cc).mean()
+        out["glide"] = glide_cost(ego[..., 0, :2], before[:, :, 0, :2], cc.glide_accel / FPS ** 2).mean()
+        out["kept"] = ego.sum() * 0.0
+        if self.anchor is not None:
+            after = gen.get_state()
+            gen.set_state(drawn_from)          # the same noise for the starting module
+            with torch.no_grad():
+                start = rollout_joints(self.anchor, b, rows, gen)
+            gen.set_state(after)
+            out["kept"] = (ego - start).pow(2).sum(-1).mean()
+        return out
 
     def _prior_anchor(self, b: Batch, z_t: torch.Tensor, t: torch.Tensor, text: tuple[torch.Tensor, torch.Tensor],
                       x0: torch.Tensor) -> torch.Tensor:
