@@ -665,6 +665,8 @@ def test_an_anchored_recipe_needs_a_trained_stage_to_hold_to(tmp_path, lib):
     train_stage("vae", out, lib, config="tiny", steps=1, batch=8, val_every=1, val_batches=1, progress=False)
     with pytest.raises(RemogenError, match="has no trained prior: train it first"):
         train_stage("prior", out, lib, config="tiny", steps=1, batch=8, progress=False, windows="slow_back_anchored")
+    with pytest.raises(RemogenError, match="hhi stage holds the segments its rollout loss samples"):
+        train_stage("hhi", out, lib, config="tiny", steps=1, batch=8, progress=False, anchor=1.0)
     train_stage("prior", out, lib, config="tiny", steps=1, batch=8, val_every=1, val_batches=1, progress=False)
     again = tmp_path / "again"
     again.mkdir()

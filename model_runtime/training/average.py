@@ -108,7 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", required=True, help="model file to write")
     ap.add_argument("--stage", default="prior", help=f"the stage to average ({', '.join(STAGES)}; default prior)")
     ap.add_argument("--library", default=None,
-                    help="clip library .npz, needed with --stage decoder (FWSR's decoder sensitivity is measured on it)")
+                    help="clip library .npz, needed with --stage decoder (FWSR's decoder sensitivity is measured "
+                         "on it)")
     args = ap.parse_args(argv)
     try:
         if args.stage in DERIVED and args.library is None:

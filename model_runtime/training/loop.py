@@ -65,6 +65,9 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         raise RemogenError(f"--anchor {anchor}: the weight must be a number >= 0 (0 trains without holding to the "
                            "start)")
     recipe = WINDOW_RECIPES[windows] if anchor is None else dataclasses.replace(WINDOW_RECIPES[windows], anchor=anchor)
+    if stage == "hhi" and recipe.anchor > 0.0 and recipe.hhi_rollout <= 0.0:
+        raise RemogenError(f"--anchor for the hhi stage holds the segments its rollout loss samples, and --windows "
+                           f"{windows} has none: use --windows setoffs_rollout, or drop --anchor")
     check_library(lib, resolve_config(config))
     rank, world = rank_and_world()
     note = (lambda msg: say(f"{stage}: {msg}")) if progress and rank == 0 else (lambda msg: None)

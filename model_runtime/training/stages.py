@@ -121,7 +121,7 @@ class StageLoss(nn.Module):
         self.model, self.stage = model, stage
         self.shown_weight = shown_weight   # the decoder stage's weight of the motion as shown (WindowRecipe)
         self.hhi_guidance = hhi_guidance   # the HHI stage's loss on the guided prediction (WindowRecipe)
-        self.hhi_rollout = hhi_rollout     # the HHI stage's clearance loss on sampled segments (WindowRecipe)
+        self.hhi_rollout = hhi_rollout     # the HHI stage's rollout clearance weight (WindowRecipe)
         if anchor_weight > 0.0 and (anchor is None or stage not in ANCHOR_STAGES):
             raise ValueError(f"an anchored {stage} stage needs the starting model (stages {', '.join(ANCHOR_STAGES)})")
         if anchor_weight > 0.0 and stage == "hhi" and hhi_rollout <= 0.0:
@@ -216,10 +216,10 @@ class StageLoss(nn.Module):
         them (every denoising step, guidance with its eased last step, the module at alpha 1; the gradient through
         all of it): "clear" the clearance charge (clearance_charge); control's costs: "seam" the joints' acceleration
         across the segment's start, "skate" the planted toes' slide and "glide" the pelvis's accelerations past a
-        walk's (each measured: without them the module learned to slide and then to glide out of the way); "kept" (with an anchor) how far
-        the segments moved from those the starting module samples from the same noise. The denoising loss scores
-        one step from a real future, and what it fits there did not come out of the sampled steps from a still
-        history (README, "Learning the controlled reaction")."""
+        walk's (measured: without them the module learned to slide, then to glide out of the way); "kept" (with an
+        anchor) how far the segments moved from those the starting module samples from the same noise. The
+        denoising loss scores one step from a real future, and what it fits there did not come out of the sampled
+        steps from a still history (README, "Learning the controlled reaction")."""
         rows = slice(0, min(ROLLOUT_ROWS, b.hist.shape[0]))   # the batch's order is random
         drawn_from = gen.get_state()
         ego = rollout_joints(self.model, b, rows, gen)
