@@ -116,12 +116,15 @@ class StageLoss(nn.Module):
 
     def __init__(self, model: ReMoGenModel, stage: str, shown_weight: float = DECODER_SHOWN_WEIGHT,
                  hhi_guidance: float = 0.0, anchor: ReMoGenModel | None = None, anchor_weight: float = 0.0,
-                 hhi_rollout: float = 0.0) -> None:
+                 hhi_rollout: float = 0.0,
+                 rollout_costs: tuple[float, float, float] = (ROLLOUT_SEAM_WEIGHT, ROLLOUT_SKATE_WEIGHT,
+                                                              ROLLOUT_GLIDE_WEIGHT)) -> None:
         super().__init__()
         self.model, self.stage = model, stage
         self.shown_weight = shown_weight   # the decoder stage's weight of the motion as shown (WindowRecipe)
         self.hhi_guidance = hhi_guidance   # the HHI stage's loss on the guided prediction (WindowRecipe)
         self.hhi_rollout = hhi_rollout     # the HHI stage's rollout clearance weight (WindowRecipe)
+        self.rollout_costs = rollout_costs  # ... and the weights of its seam, skate and glide costs
         if anchor_weight > 0.0 and (anchor is None or stage not in ANCHOR_STAGES):
             raise ValueError(f"an anchored {stage} stage needs the starting model (stages {', '.join(ANCHOR_STAGES)})")
         if anchor_weight > 0.0 and stage == "hhi" and hhi_rollout <= 0.0:
@@ -206,9 +209,9 @@ class StageLoss(nn.Module):
         if self.stage == "hhi" and self.hhi_rollout > 0.0 and b.partner_future is not None:
             rolled = self._rollout_loss(b, gen)
             parts.update({k: float(v.detach()) for k, v in rolled.items()})
-            loss = loss + self.hhi_rollout * rolled["clear"] + ROLLOUT_SEAM_WEIGHT * rolled["seam"] \
-                + ROLLOUT_SKATE_WEIGHT * rolled["skate"] + ROLLOUT_GLIDE_WEIGHT * rolled["glide"] \
-                + self.anchor_weight * rolled["kept"]
+            seam, skate, glide = self.rollout_costs
+            loss = loss + self.hhi_rollout * rolled["clear"] + seam * rolled["seam"] + skate * rolled["skate"] \
+                + glide * rolled["glide"] + self.anchor_weight * rolled["kept"]
         return loss, parts
 
     def _rollout_loss(self, b: Batch, gen: torch.Generator) -> dict[str, torch.Tensor]:
