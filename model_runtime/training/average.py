@@ -75,14 +75,19 @@ def average_stage(models: list[ReMoGenModel], weights: list[float], stage: str =
     return base
 
 
+def check_library_given(stage: str, library: str | Path | None) -> None:
+    """Refuses to average a stage that others derive buffers from without the library to measure them on."""
+    if stage in DERIVED and library is None:
+        raise RemogenError(f"averaging the {stage} measures FWSR's decoder sensitivity again: give --library "
+                           "CLIPS.npz (the clip library the decoder was trained on)")
+
+
 def remeasure_derived(model: ReMoGenModel, stage: str, library: str | Path | None) -> None:
     """Measure what other stages derive from the averaged stage (the decoder's sensitivity, on the library's
     training clips as the decoder stage measures it)."""
+    check_library_given(stage, library)
     if stage not in DERIVED:
         return
-    if library is None:
-        raise RemogenError(f"averaging the {stage} measures FWSR's decoder sensitivity again: give --library "
-                           "CLIPS.npz (the clip library the decoder was trained on)")
     from ..data.library import ClipLibrary
     from .setup import decoder_sensitivity
     decoder_sensitivity(model, ClipLibrary.load(library), seed=0)
@@ -112,9 +117,7 @@ def main(argv: list[str] | None = None) -> int:
                          "on it)")
     args = ap.parse_args(argv)
     try:
-        if args.stage in DERIVED and args.library is None:
-            raise RemogenError(f"averaging the {args.stage} measures FWSR's decoder sensitivity again: give "
-                               "--library CLIPS.npz (the clip library the decoder was trained on)")
+        check_library_given(args.stage, args.library)    # before the files are read
         sources = [parse_source(f) for f in args.files]
         models = [load_model(p, warn_untrained=False) for p, _ in sources]
         total = sum(w for _, w in sources)

@@ -18,7 +18,7 @@ import torch
 from torch import nn
 
 from ..errors import DEFAULT_GUIDANCE
-from ..model import Contexts, DiffusionJob, ReMoGenModel, noise
+from ..model import Contexts, ReMoGenModel, noise
 from ..features import features_to_pose
 from ..skeleton import forward_kinematics
 from ..control import FPS, ControlConfig, foot_cost, glide_cost, seam_cost
@@ -51,12 +51,18 @@ def own_recent_frames(model: ReMoGenModel, b: Batch, z0: torch.Tensor, gen: torc
     return torch.where(own.view(-1, 1, 1), mine, b.recent)
 
 
+def shown_joints(stats, feats_n: torch.Tensor) -> torch.Tensor:
+    """(..., T, 22, 3) the joints of normalised features (..., T, D) as the runtime shows them: forward kinematics
+    of their rotations and pelvis."""
+    return forward_kinematics(*features_to_pose(stats.denormalize(feats_n)))[0]
+
+
 def shown_joint_error(stats, decoded_n: torch.Tensor, real_n: torch.Tensor) -> torch.Tensor:
     """(F,) mean joint distance (m) per segment frame between the motion shown for decoded and for real
     normalised features (B, F, D): forward kinematics of their rotations and pelvis, as the runtime shows it."""
-    shown = forward_kinematics(*features_to_pose(stats.denormalize(decoded_n)))[0]
+    shown = shown_joints(stats, decoded_n)
     with torch.no_grad():
-        real = forward_kinematics(*features_to_pose(stats.denormalize(real_n)))[0]
+        real = shown_joints(stats, real_n)
     return (shown - real).norm(dim=-1).mean((0, 2))
 
 
@@ -78,10 +84,8 @@ def rollout_joints(model: ReMoGenModel, b: Batch, rows: slice, gen: torch.Genera
     with torch.no_grad():
         emb = model.text_encoder.encode(b.text[rows]).to(hist.device)
     ctx = model.encode_contexts(b.partner[rows], b.present[rows], None, None, {"hhi": 1.0})
-    job = DiffusionJob(model, hist, emb, ctx, {"hhi": 1.0}, DEFAULT_GUIDANCE, gen)
-    job.advance(model.cfg.diffusion_steps)
-    dec = model.vae.decode(hist, job.result)
-    return forward_kinematics(*features_to_pose(model.stats.denormalize(dec)))[0]
+    z = model.sample_latent(hist, emb, ctx, {"hhi": 1.0}, DEFAULT_GUIDANCE, gen)
+    return shown_joints(model.stats, model.vae.decode(hist, z))
 
 
 def trainable_module(model: ReMoGenModel, stage: str) -> nn.Module:
@@ -229,7 +233,7 @@ class StageLoss(nn.Module):
         out = {"clear": clearance_charge(ego, b.partner_future[rows].to(ego.device),
                                          b.future_present[rows].to(ego.device))}
         m = self.model
-        before = forward_kinematics(*features_to_pose(m.stats.denormalize(b.hist[rows, -2:])))[0]   # (R, 2, 22, 3)
+        before = shown_joints(m.stats, b.hist[rows, -2:])   # (R, 2, 22, 3): the history's last two frames
         out["seam"] = seam_cost(ego, before[:, 1], before[:, 0]).mean()
         cc = ControlConfig()
         out["skate"] = foot_cost(ego, before[:, 1], cc).mean()
