@@ -322,6 +322,27 @@ def test_the_clearance_charge_counts_each_frame_by_its_nearest_joints():
     assert abs(float(clearance_charge(ego, partner, present)) - (ROLLOUT_MARGIN - 0.1) ** 2 / 3) < 1e-6
 
 
+def test_the_clearance_charge_can_leave_the_forearms_free():
+    """Without the arms (WindowRecipe.rollout_arms off) a wrist or elbow reaching toward a partner costs nothing; the
+    rest of the body still does; the recipe that says so gives the loss that joint list."""
+    from model_runtime.joints import JOINT_INDEX
+    from model_runtime.training.recipe import ROLLOUT_MARGIN, ROLLOUT_REACHING_JOINTS, WINDOW_RECIPES
+    from model_runtime.training.stages import StageLoss, clearance_charge
+    model = load_model(config="tiny")
+    trunk = StageLoss(model, "hhi", hhi_rollout=1.0, rollout_arms=WINDOW_RECIPES["setoffs_rollout_trunk"].rollout_arms)
+    assert sorted(trunk.clearance_joints) == sorted(i for n, i in JOINT_INDEX.items() if n not in ROLLOUT_REACHING_JOINTS)
+    assert StageLoss(model, "hhi", hhi_rollout=1.0).clearance_joints is None
+    ego = torch.zeros(1, 1, 22, 3)
+    partner = torch.full((1, 1, 22, 3), 50.0)
+    present = torch.ones(1, 1, dtype=torch.bool)
+    ego[0, 0, JOINT_INDEX["right_wrist"]] = torch.tensor([49.8, 50.0, 50.0])    # a hand 0.2 m from the partner
+    assert abs(float(clearance_charge(ego, partner, present)) - (ROLLOUT_MARGIN - 0.2) ** 2) < 1e-5
+    assert float(clearance_charge(ego, partner, present, trunk.clearance_joints)) == 0.0
+    ego[0, 0, JOINT_INDEX["head"]] = torch.tensor([49.9, 50.0, 50.0])           # the head 0.1 m from it
+    assert abs(float(clearance_charge(ego, partner, present, trunk.clearance_joints))
+               - (ROLLOUT_MARGIN - 0.1) ** 2) < 1e-5
+
+
 def test_the_rollout_loss_trains_the_module_through_the_sampled_segment(lib):
     import copy
     from model_runtime.training.recipe import WINDOW_RECIPES
@@ -586,7 +607,8 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
                       "head_shares": [], "head_share_stages": [], "decoder_shown_weight": 1.0,
                       "hhi_copy_stages": [], "wider_phrasings": False, "slowed_walk_stages": [],
                       "setoff_share": 0.0, "hhi_guidance": 0.0, "anchor": 0.0,
-                      "hhi_rollout": 0.0, "rollout_seam": 1.0, "rollout_skate": 10.0, "rollout_glide": 100.0}
+                      "hhi_rollout": 0.0, "rollout_seam": 1.0, "rollout_skate": 10.0, "rollout_glide": 100.0,
+                      "rollout_arms": True}
     with pytest.raises(RemogenError, match="unknown window recipe 'odd'; use one of captured, balanced, reversed"):
         train_stage("prior", out, lib, config="tiny", steps=1, progress=False, windows="odd")
 

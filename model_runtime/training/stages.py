@@ -22,8 +22,9 @@ from ..model import Contexts, ReMoGenModel, noise
 from ..features import features_to_pose
 from ..skeleton import forward_kinematics
 from ..control import FPS, ControlConfig, foot_cost, glide_cost, seam_cost
+from ..joints import JOINT_INDEX
 from .recipe import (DECODER_FIRST_FRAMES, DECODER_SHOWN_WEIGHT, FWSR_OWN_SHARE, ROLLOUT_GLIDE_WEIGHT, ROLLOUT_MARGIN,
-                     ROLLOUT_ROWS, ROLLOUT_SEAM_WEIGHT, ROLLOUT_SKATE_WEIGHT, TEXT_DROP)
+                     ROLLOUT_REACHING_JOINTS, ROLLOUT_ROWS, ROLLOUT_SEAM_WEIGHT, ROLLOUT_SKATE_WEIGHT, TEXT_DROP)
 from .samples import Batch
 
 STAGES = ("vae", "prior", "hhi", "hsi", "fwsr", "decoder")
@@ -66,11 +67,14 @@ def shown_joint_error(stats, decoded_n: torch.Tensor, real_n: torch.Tensor) -> t
     return (shown - real).norm(dim=-1).mean((0, 2))
 
 
-def clearance_charge(ego: torch.Tensor, partner: torch.Tensor, present: torch.Tensor) -> torch.Tensor:
+def clearance_charge(ego: torch.Tensor, partner: torch.Tensor, present: torch.Tensor,
+                     ego_joints: list[int] | None = None) -> torch.Tensor:
     """Mean over the frames where the partner is there of relu(ROLLOUT_MARGIN - clearance)^2, clearance being the
-    distance between the nearest joints of the two bodies. ego (R, F, 22, 3); partner (R, F + L, 22, 3) and present
-    (R, F + L): its last L frames are checked against the ego's last pose (a segment must end out of the way of
-    where the partner goes next, as test-time control asks)."""
+    distance between the nearest joints of the two bodies (of the ego, only `ego_joints` when given). ego (R, F, 22,
+    3); partner (R, F + L, 22, 3) and present (R, F + L): its last L frames are checked against the ego's last pose
+    (a segment must end out of the way of where the partner goes next, as test-time control asks)."""
+    if ego_joints is not None:
+        ego = ego[:, :, ego_joints]
     last = ego[:, -1:].expand(-1, partner.shape[1] - ego.shape[1], -1, -1)
     held = torch.cat((ego, last), 1)
     gap = torch.cdist(held.flatten(0, 1), partner.flatten(0, 1)).amin((1, 2)).view(present.shape)
@@ -122,13 +126,17 @@ class StageLoss(nn.Module):
                  hhi_guidance: float = 0.0, anchor: ReMoGenModel | None = None, anchor_weight: float = 0.0,
                  hhi_rollout: float = 0.0,
                  rollout_costs: tuple[float, float, float] = (ROLLOUT_SEAM_WEIGHT, ROLLOUT_SKATE_WEIGHT,
-                                                              ROLLOUT_GLIDE_WEIGHT)) -> None:
+                                                              ROLLOUT_GLIDE_WEIGHT),
+                 rollout_arms: bool = True) -> None:
         super().__init__()
         self.model, self.stage = model, stage
         self.shown_weight = shown_weight   # the decoder stage's weight of the motion as shown (WindowRecipe)
         self.hhi_guidance = hhi_guidance   # the HHI stage's loss on the guided prediction (WindowRecipe)
         self.hhi_rollout = hhi_rollout     # the HHI stage's rollout clearance weight (WindowRecipe)
         self.rollout_costs = rollout_costs  # ... and the weights of its seam, skate and glide costs
+        # ... and the ego's joints its clearance charge counts (None: all)
+        self.clearance_joints = None if rollout_arms else \
+            [i for name, i in JOINT_INDEX.items() if name not in ROLLOUT_REACHING_JOINTS]
         if anchor_weight > 0.0 and (anchor is None or stage not in ANCHOR_STAGES):
             raise ValueError(f"an anchored {stage} stage needs the starting model (stages {', '.join(ANCHOR_STAGES)})")
         if anchor_weight > 0.0 and stage == "hhi" and hhi_rollout <= 0.0:
@@ -231,7 +239,7 @@ class StageLoss(nn.Module):
         drawn_from = gen.get_state()
         ego = rollout_joints(self.model, b, rows, gen)
         out = {"clear": clearance_charge(ego, b.partner_future[rows].to(ego.device),
-                                         b.future_present[rows].to(ego.device))}
+                                         b.future_present[rows].to(ego.device), self.clearance_joints)}
         m = self.model
         before = shown_joints(m.stats, b.hist[rows, -2:])   # (R, 2, 22, 3): the history's last two frames
         out["seam"] = seam_cost(ego, before[:, 1], before[:, 0]).mean()
