@@ -87,6 +87,25 @@ def test_planted_toe_speed_counts_only_planted_toes():
     assert M.planted_toe_speed(j).size == 0
 
 
+def test_dragged_toe_steps_are_the_planted_steps_swept_along_the_floor():
+    """A toe swept along the floor at 2 m/s is dragged; one creeping at 3 cm/s or standing is not; the real walk the
+    suite replays drags none, and the suite reports the share beside the planted-toe mean."""
+    from model_runtime.behaviour.suite import real_reference, summarise
+    j = np.tile(standing_body()[None], (11, 1, 1))
+    toes = list(M.TOES)
+    j[:, toes, 2] = SOLE_BELOW_FOOT_JOINT + 0.01
+    j[:, toes[0], 0] += np.arange(11) * 0.003               # creeping
+    assert M.dragged_toe_percent(M.planted_toe_speed(j)) == 0.0
+    j[6:, toes[1], 0] += np.arange(5) * 0.2 + 0.2           # the right toe swept 0.2 m a frame from frame 6 on
+    s = M.planted_toe_speed(j)
+    assert M.dragged_toe_percent(s) == pytest.approx(100.0 * 5 / 20)
+    assert math.isnan(M.dragged_toe_percent(np.zeros(0)))
+    assert real_reference()["walk_clip"]["percent_dragged_toe_steps"] == 0.0
+    ep = {"toe_speeds": s, "seam_steps": (0.0, 0, 1.0, 1), "peak_pelvis_speed": 0.0}
+    assert summarise("walk_forward", [dict(ep, net_yaw_deg_per_20s=0.0)])["percent_dragged_toe_steps"] == \
+        pytest.approx(25.0)
+
+
 def test_net_yaw_and_drift():
     bodies = np.stack([standing_body(math.radians(0.5 * k), (0.01 * k, 0.0)) for k in range(101)])  # 10 s
     assert M.net_yaw_deg(bodies, 20.0) == pytest.approx(100.0, abs=0.5)     # 50 deg in 10 s -> 100 per 20 s

@@ -12,10 +12,11 @@ Each text prompt has a kind with a statistic and a target (text_targets.py), com
 that kind when a clip library is given (real_clips.py). diversity.py measures how far apart different
 seeds' takes of one prompt are, against real takes of its caption; tables.py prints both as markdown.
 """
-from .metrics import (SEAM_PERIOD, facing_error_deg, frames_inside_boxes, goal_arrival, min_joint_clearance,
-                      net_yaw_deg, planted_toe_speed, seam_ratio, standing_drift_m)
+from .metrics import (SEAM_PERIOD, dragged_toe_percent, facing_error_deg, frames_inside_boxes, goal_arrival,
+                      min_joint_clearance, net_yaw_deg, planted_toe_speed, seam_ratio, standing_drift_m)
 from .scenarios import FAMILIES, SPLIT_SEEDS, Box, Episode, draw_episodes
 
-__all__ = ["FAMILIES", "SPLIT_SEEDS", "Box", "Episode", "draw_episodes", "SEAM_PERIOD", "facing_error_deg",
+__all__ = ["FAMILIES", "SPLIT_SEEDS", "Box", "Episode", "draw_episodes", "SEAM_PERIOD", "dragged_toe_percent",
+           "facing_error_deg",
            "frames_inside_boxes", "goal_arrival", "min_joint_clearance", "net_yaw_deg", "planted_toe_speed",
            "seam_ratio", "standing_drift_m"]

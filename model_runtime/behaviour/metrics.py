@@ -25,6 +25,8 @@ AIRBORNE_HEIGHT = 0.05          # m: the lowest sole this far above the floor co
 MIN_TRAVEL = 0.3                # m: less horizontal travel has no direction to compare with the facing
 WAVE_MIN_RAISED_FRAMES = 10     # a wrist above its shoulder for less than 1 s is not waving
 FLOOR_HALF_WINDOW = 5           # frames: a real clip's floor follows its feet over about 1 s (rolling_floor)
+DRAGGED_TOE_SPEED = 1.0         # m/s: a planted toe moving this fast is dragged along the floor, not creeping (the
+                                # real walk's planted toes creep at 0.12 m/s on average, its fastest step 0.32)
 GLIDE_SPEED = 4.0               # m/s: a pelvis step faster than this between two frames is a glide, not a step
                                 # (the 4 h library's clips: 99.99 % of pelvis steps under 4.35 m/s, all under 5.0)
 
@@ -97,6 +99,13 @@ def planted_toe_speed(joints: np.ndarray, floor: float = 0.0, height: float = PL
     """
     # the evaluation's grounded-foot measure (cm per frame, same toe joints) with the tighter planted height
     return grounded_foot_speeds(joints, floor, contact=height) / 100.0 * FPS
+
+
+def dragged_toe_percent(toe_speeds: np.ndarray) -> float:
+    """% of planted toe steps (planted_toe_speed's output, m/s) at DRAGGED_TOE_SPEED or faster: feet swept along the
+    floor. The planted-toe mean mixes these with a planted foot's slow creep; a few of them can carry it."""
+    s = np.asarray(toe_speeds, np.float64)
+    return float(100.0 * (s >= DRAGGED_TOE_SPEED).mean()) if s.size else float("nan")
 
 
 def heading_deg(joints: np.ndarray) -> np.ndarray:

@@ -86,6 +86,7 @@ def summarise(family: str, results: list[dict]) -> dict:
     s["seam_ratio"] = float((seam / max(ns, 1)) / max(other / max(no, 1), 1e-9))
     toes = np.concatenate([r["toe_speeds"] for r in results]) if results else np.zeros(0)
     s["planted_toe_cm_s"] = float(toes.mean() * 100.0) if toes.size else float("nan")
+    s["percent_dragged_toe_steps"] = M.dragged_toe_percent(toes)
     s["percent_glide"] = float(100.0 * np.mean([r["peak_pelvis_speed"] > M.GLIDE_SPEED for r in results]))
     if "min_clearance_m" in results[0]:
         c = np.array([r["min_clearance_m"] for r in results])
@@ -116,6 +117,7 @@ def real_reference() -> dict:
     joints, _ = walk_clip()
     return {"walk_clip": {"seam_ratio": M.seam_ratio(joints),
                           "planted_toe_cm_s": float(M.planted_toe_speed(joints).mean() * 100.0),
+                          "percent_dragged_toe_steps": M.dragged_toe_percent(M.planted_toe_speed(joints)),
                           "net_yaw_deg_per_20s": M.net_yaw_deg(joints, 20.0)}}
 
 
