@@ -115,9 +115,10 @@ def summarise(family: str, results: list[dict]) -> dict:
 def real_reference() -> dict:
     """The metrics that apply to real motion, on the shipped real walk (seams at the same 8-frame period)."""
     joints, _ = walk_clip()
+    toes = M.planted_toe_speed(joints)
     return {"walk_clip": {"seam_ratio": M.seam_ratio(joints),
-                          "planted_toe_cm_s": float(M.planted_toe_speed(joints).mean() * 100.0),
-                          "percent_dragged_toe_steps": M.dragged_toe_percent(M.planted_toe_speed(joints)),
+                          "planted_toe_cm_s": float(toes.mean() * 100.0),
+                          "percent_dragged_toe_steps": M.dragged_toe_percent(toes),
                           "net_yaw_deg_per_20s": M.net_yaw_deg(joints, 20.0)}}
 
 
