@@ -6,7 +6,7 @@ import torch
 
 from model_runtime.checkpoint import load_model, save_model
 from model_runtime.errors import RemogenError
-from model_runtime.training.average import average_priors, average_stage, main, parse_source
+from model_runtime.training.average import average_stage, main, parse_source
 
 
 def _pair():
@@ -22,7 +22,7 @@ def test_the_prior_is_the_weighted_mean_and_the_rest_is_kept():
     a, b = _pair()
     before = {k: v.clone() for k, v in a.denoiser.state_dict().items()}
     hhi = {k: v.clone() for k, v in a.mims.state_dict().items()}
-    out = average_priors([a, b], [3.0, 1.0])      # normalised: 0.75 and 0.25
+    out = average_stage([a, b], [3.0, 1.0])      # normalised: 0.75 and 0.25
     for k, v in out.denoiser.state_dict().items():
         assert torch.allclose(v, before[k] + 0.25, atol=1e-6), k
     assert all(torch.equal(v, hhi[k]) for k, v in out.mims.state_dict().items())
@@ -33,9 +33,9 @@ def test_files_that_differ_outside_the_prior_are_refused():
     with torch.no_grad():
         next(b.mims.parameters()).add_(0.1)
     with pytest.raises(RemogenError, match="mims"):
-        average_priors([a, b], [1.0, 1.0])
+        average_stage([a, b], [1.0, 1.0])
     with pytest.raises(RemogenError, match="at least two"):
-        average_priors([a], [1.0])
+        average_stage([a], [1.0])
 
 
 def test_sources_are_read_with_their_weights():

@@ -93,11 +93,6 @@ def remeasure_derived(model: ReMoGenModel, stage: str, library: str | Path | Non
     decoder_sensitivity(model, ClipLibrary.load(library), seed=0)
 
 
-def average_priors(models: list[ReMoGenModel], weights: list[float]) -> ReMoGenModel:
-    """The first model with its prior replaced by the weighted mean of all the models' priors."""
-    return average_stage(models, weights, "prior")
-
-
 def _source_record(path: str, weight: float, model: ReMoGenModel, stage: str = "prior") -> dict:
     """What the averaged file records of one source: its name, weight and the stage's training (steps, windows)."""
     trained = model.meta.get("stages", {}).get(stage, {})

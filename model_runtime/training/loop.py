@@ -28,7 +28,7 @@ from .report import StageRun, say, validation_history
 from .prefetch import batch_stream
 from .samples import SegmentSampler
 from .setup import build_samplers, check_library, decoder_sensitivity, fit_stats
-from .stages import ANCHOR_STAGES, STAGES, TEXT_STAGES, StageLoss, freeze_for, trainable_module
+from .stages import ANCHOR_STAGES, STAGES, TEXT_STAGES, StageLoss, check_hhi_anchor, freeze_for, trainable_module
 
 
 def rank_and_world() -> tuple[int, int]:
@@ -65,9 +65,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         raise RemogenError(f"--anchor {anchor}: the weight must be a number >= 0 (0 trains without holding to the "
                            "start)")
     recipe = WINDOW_RECIPES[windows] if anchor is None else dataclasses.replace(WINDOW_RECIPES[windows], anchor=anchor)
-    if stage == "hhi" and recipe.anchor > 0.0 and recipe.hhi_rollout <= 0.0:
-        raise RemogenError(f"--anchor for the hhi stage holds the segments its rollout loss samples, and --windows "
-                           f"{windows} has none: use --windows setoffs_rollout, or drop --anchor")
+    check_hhi_anchor(stage, recipe.anchor, recipe.hhi_rollout)    # before the library is read
     check_library(lib, resolve_config(config))
     rank, world = rank_and_world()
     note = (lambda msg: say(f"{stage}: {msg}")) if progress and rank == 0 else (lambda msg: None)

@@ -1,7 +1,7 @@
 """The shipped default model's training recipe: steps, batch and learning rate per stage, and why."""
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 # The shipped default model's recipe per stage: (steps, batch, learning rate); --steps/--batch/--lr override.
 # VAE and prior train at the paper's 1e-4. The zero-initialised adapters (HHI, HSI, FWSR) get 1e-3: on this
@@ -142,8 +142,9 @@ KICK_HEAD_SHARES: tuple[tuple[str, float], ...] = (("a person kicks", 0.06),)
 # The rollout loss of the HHI stage (WindowRecipe.hhi_rollout, "setoffs_rollout"): windows sampled a batch; the
 # clearance (m, nearest joints of the two bodies) below which a frame is charged; the partner frames after the
 # segment its last pose is checked against (control's look_ahead: a segment must end out of the way of where the
-# partner goes next); the weight of the joints' acceleration across the segment's start (control's seam cost), so
-# that a reaction is not learned as a pop; and the loss's weight.
+# partner goes next); the default weights of control's costs of the segment: the joints' acceleration across its
+# start (seam, so that a reaction is not learned as a pop), planted toes sliding (skate) and pelvis glides; and the
+# clearance loss's weight.
 ROLLOUT_ROWS = 32
 ROLLOUT_MARGIN = 0.4
 ROLLOUT_LOOK_AHEAD = 8
@@ -193,6 +194,10 @@ def _listed(v):
 
 
 # `train --windows NAME`. "captured": the windows as the data holds them, what `train all` uses for every stage.
+# The anchored rollout recipe ("setoffs_rollout_anchored") and its variants
+ROLLOUT_ANCHORED = WindowRecipe(setoff_share=0.5, hhi_guidance=6.0, hhi_rollout=100.0, rollout_seam=0.05,
+                                rollout_skate=10.0, rollout_glide=0.0, anchor=10.0)
+
 # "balanced": what the shipped prior trained 2,000 steps further on before the "kicks" steps (MODEL_CARD.md, "How
 # these weights were made"), chosen on the val split among four such fine-tunes (the model card's "The prior trained
 # further"). "kicks": the shipped decoder's 4,000 and prior's 1,500 last steps.
@@ -255,14 +260,12 @@ WINDOW_RECIPES = {
     "setoffs_rollout": WindowRecipe(setoff_share=0.5, hhi_guidance=6.0, hhi_rollout=ROLLOUT_WEIGHT),
     # the run whose 250-step snapshot, averaged 0.4 with the shipped module, meets the learned crossing on val with
     # the feet sliding more while the ego dodges (README, "Training the HHI module on the segments it samples")
-    "setoffs_rollout_anchored": WindowRecipe(setoff_share=0.5, hhi_guidance=6.0, hhi_rollout=100.0, rollout_seam=0.05,
-                                             rollout_skate=10.0, rollout_glide=0.0, anchor=10.0),
+    "setoffs_rollout_anchored": ROLLOUT_ANCHORED,
     # the same with the ego's forearms free to come near a partner (a rollout-trained module damped the waving arms of
     # an ego beside a standing partner). Measured on val and not shipped: the same learned crossing and sliding, the
     # demo's ego waves in 11 of 12 seeds (10 of 12 with the arms charged; README, "Training the HHI module on the
     # segments it samples")
-    "setoffs_rollout_trunk": WindowRecipe(setoff_share=0.5, hhi_guidance=6.0, hhi_rollout=100.0, rollout_seam=0.05,
-                                          rollout_skate=10.0, rollout_glide=0.0, anchor=10.0, rollout_arms=False),
+    "setoffs_rollout_trunk": replace(ROLLOUT_ANCHORED, rollout_arms=False),
     # the kicks windows, and for the prior slowed copies of the forward walks (data/slowed_walks.py). Measured on
     # val and not shipped: the slow-walk kind is met, and every snapshot or average of them loses a met target
     "kicks_slowed": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",),

@@ -17,14 +17,15 @@ from typing import Callable
 import torch
 from torch import nn
 
-from ..errors import DEFAULT_GUIDANCE
+from ..errors import DEFAULT_GUIDANCE, RemogenError
 from ..model import Contexts, ReMoGenModel, noise
 from ..features import features_to_pose
 from ..skeleton import forward_kinematics
 from ..control import FPS, ControlConfig, foot_cost, glide_cost, seam_cost
 from ..joints import JOINT_INDEX
 from .recipe import (DECODER_FIRST_FRAMES, DECODER_SHOWN_WEIGHT, FWSR_OWN_SHARE, ROLLOUT_GLIDE_WEIGHT, ROLLOUT_MARGIN,
-                     ROLLOUT_REACHING_JOINTS, ROLLOUT_ROWS, ROLLOUT_SEAM_WEIGHT, ROLLOUT_SKATE_WEIGHT, TEXT_DROP)
+                     ROLLOUT_REACHING_JOINTS, ROLLOUT_ROWS, ROLLOUT_SEAM_WEIGHT, ROLLOUT_SKATE_WEIGHT, TEXT_DROP,
+                     WINDOW_RECIPES)
 from .samples import Batch
 
 STAGES = ("vae", "prior", "hhi", "hsi", "fwsr", "decoder")
@@ -92,6 +93,14 @@ def rollout_joints(model: ReMoGenModel, b: Batch, rows: slice, gen: torch.Genera
     return shown_joints(model.stats, model.vae.decode(hist, z))
 
 
+def check_hhi_anchor(stage: str, anchor_weight: float, hhi_rollout: float) -> None:
+    """Refuses an anchored HHI stage without a rollout loss: its anchor holds the segments that loss samples."""
+    if stage == "hhi" and anchor_weight > 0.0 and hhi_rollout <= 0.0:
+        with_rollout = ", ".join(n for n, r in WINDOW_RECIPES.items() if r.hhi_rollout > 0.0)
+        raise RemogenError("an anchored hhi stage holds the segments its rollout loss samples, and this recipe has "
+                           f"none (hhi_rollout 0): use --windows {with_rollout}, or drop --anchor")
+
+
 def trainable_module(model: ReMoGenModel, stage: str) -> nn.Module:
     if stage == "decoder":
         return model.vae.decoder_parts()
@@ -139,8 +148,7 @@ class StageLoss(nn.Module):
             [i for name, i in JOINT_INDEX.items() if name not in ROLLOUT_REACHING_JOINTS]
         if anchor_weight > 0.0 and (anchor is None or stage not in ANCHOR_STAGES):
             raise ValueError(f"an anchored {stage} stage needs the starting model (stages {', '.join(ANCHOR_STAGES)})")
-        if anchor_weight > 0.0 and stage == "hhi" and hhi_rollout <= 0.0:
-            raise ValueError("an anchored hhi stage holds the segments its rollout loss samples: give hhi_rollout > 0")
+        check_hhi_anchor(stage, anchor_weight, hhi_rollout)
         # the starting file, frozen, whose output the windows it knew are held to (recipe.ANCHORED_KINDS)
         self.anchor = anchor.eval().requires_grad_(False) if anchor_weight > 0.0 else None
         self.anchor_weight = anchor_weight
