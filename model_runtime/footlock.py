@@ -11,6 +11,11 @@ turned as the model generated it, the toe stays on that point. Where the pelvis 
 push-off, so the toe stays put. After lift-off the correction fades out over a few frames instead of snapping.
 When the pelvis has moved well out of the leg's reach (judged on the foot as generated) the contact is released
 early.
+
+A foot out of contact that travels fast while near the floor (the model sweeping it low across the floor, or the
+catch-up after a held contact lets go) is lifted into a swing: its sole is raised in proportion to that frame's
+travel, its path across the floor unchanged, so a foot that moves a step's length in a frame leaves the floor
+as a stepping foot does instead of skating along it.
 """
 from __future__ import annotations
 
@@ -38,6 +43,9 @@ class FootLockConfig:
     reach: float = 0.999            # fraction of the leg's length the IK may stretch to
     max_miss: float = 0.04          # m: a planted toe further than this out of the leg's reach is let go
     max_roll_deg: float = 30.0      # heel lift about a planted toe that a stretched leg may add (push-offs reach 30+)
+    swing_speed: float = 1.0        # m/s: a free toe this fast and under touch_height is skating: it is lifted ...
+    swing_lift: float = 0.3         # ... its sole raised to this fraction of the frame's travel (a 15 cm step: 4.5 cm) ...
+    max_swing_lift: float = 0.05    # ... at most this high (m; real walks' toes faster than 1 m/s: sole p10 3.5, p50 6.8 cm)
 
 
 # 3-vector helpers: np.cross and np.linalg.norm cost tens of microseconds on one small vector (axis handling),
@@ -156,13 +164,31 @@ class FootLock:
         self._prev_toe = {side: None for side in LEGS}
         self._anchor: dict[str, np.ndarray | None] = {side: None for side in LEGS}
         self._fade: dict[str, tuple[int, np.ndarray] | None] = {side: None for side in LEGS}
+        self._prev_out: dict[str, np.ndarray | None] = {side: None for side in LEGS}   # the toe as handed out
 
     def state(self) -> tuple:
         """A copy of the contact state (to undo a failed frame)."""
-        return dict(self._prev_toe), dict(self._anchor), dict(self._fade)
+        return dict(self._prev_toe), dict(self._anchor), dict(self._fade), dict(self._prev_out)
 
     def set_state(self, state: tuple) -> None:
-        self._prev_toe, self._anchor, self._fade = (dict(d) for d in state)
+        self._prev_toe, self._anchor, self._fade, self._prev_out = (dict(d) for d in state)
+
+    def _jump_to(self, side: str, toe_out: np.ndarray) -> float:
+        """Horizontal speed (m/s) of the handed-out toe if it were at `toe_out` this frame (0 on the first)."""
+        prev = self._prev_out[side]
+        if prev is None:
+            return 0.0
+        return math.hypot(float(toe_out[0] - prev[0]), float(toe_out[1] - prev[1])) * FPS
+
+    def _swing_height(self, side: str, toe_out: np.ndarray, floor: float) -> float:
+        """How far (m) to raise a free toe handed out at `toe_out` so it swings instead of skating; 0 for none."""
+        speed = self._jump_to(side, toe_out)
+        if speed < self.cfg.swing_speed:
+            return 0.0
+        sole = float(toe_out[2]) - SOLE_BELOW_FOOT_JOINT - floor
+        if sole >= self.cfg.touch_height:       # already clear of the floor: a swing as generated is left alone
+            return 0.0
+        return max(0.0, min(self.cfg.max_swing_lift, self.cfg.swing_lift * speed / FPS) - sole)
 
     def _reach(self, leg: tuple[int, int, int, int]) -> float:
         """How far from the hip the IK may put the ankle (m)."""
@@ -195,6 +221,8 @@ class FootLock:
             toe = joints[leg[3]]
             in_contact = self._contact(side, toe, floor)
             self._prev_toe[side] = toe.copy()
+            if in_contact and self._anchor[side] is None and self.locks and self._jump_to(side, toe) >= self.cfg.swing_speed:
+                in_contact = False              # a catch-up still under way: land it next frame, lifted on the way
             if in_contact and self._anchor[side] is None:
                 self._anchor[side] = toe.copy()
             if not in_contact and self._anchor[side] is not None:
@@ -221,14 +249,23 @@ class FootLock:
                 else:                                   # out of reach: let this foot go
                     self._fade[side] = (self.cfg.fade_frames, self._anchor[side])
                     self._anchor[side] = None
-            if self._anchor[side] is None and self._fade[side] is not None:
-                left, anchor = self._fade[side]
-                w = left / (self.cfg.fade_frames + 1.0)
-                target = (1.0 - w) * toe + w * anchor
-                target[2] = max(target[2], toe[2])      # lifts as generated: a fading toe is never dragged low
-                foot = self._rolled(generated_foot, leg, target, joints)
-                solve_leg(glob, joints, leg, target - foot @ _OFFSETS[leg[3]], foot, self.cfg.reach,
-                          self.cfg.max_miss)
-                self._fade[side] = (left - 1, anchor) if left > 1 else None
+            toe_out = self._anchor[side] if self._anchor[side] is not None else toe
+            if self._anchor[side] is None:
+                target = None
+                if self._fade[side] is not None:
+                    left, anchor = self._fade[side]
+                    w = left / (self.cfg.fade_frames + 1.0)
+                    target = (1.0 - w) * toe + w * anchor
+                    target[2] = max(target[2], toe[2])      # lifts as generated: a fading toe is never dragged low
+                    self._fade[side] = (left - 1, anchor) if left > 1 else None
+                lift = self._swing_height(side, toe if target is None else target, floor)
+                if lift > 0.0:
+                    target = (toe if target is None else target) + np.array((0.0, 0.0, lift))
+                if target is not None:
+                    foot = self._rolled(generated_foot, leg, target, joints)
+                    if solve_leg(glob, joints, leg, target - foot @ _OFFSETS[leg[3]], foot, self.cfg.reach,
+                                 self.cfg.max_miss):
+                        toe_out = target
+            self._prev_out[side] = toe_out.copy()
             local_from_global(glob, leg[:3], out)
         return (local_rot if out is None else out), contacts
