@@ -95,7 +95,8 @@ class RemogenSettings(RemogenEgoSettings, bpy.types.PropertyGroup):
         description="Which armatures Live and Bake pose when a target is set")
     use_foot_lock: BoolProperty(
         name="Plant Feet", default=True,
-        description="Keep a foot that touches the floor fixed there (leg IK on the generated pose)")
+        description="Keep a foot that touches the floor fixed there, and lift a foot swept fast across the floor "
+                    "into a step (leg IK on the generated pose)")
     use_control: BoolProperty(
         name="Steer", default=True,
         description="Test-time control: steer each segment away from the partner and obstacles, toward the goal, "
