@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .joints import JOINT_INDEX, PARENTS, SOLE_BELOW_FOOT_JOINT, rest_offsets_np
+from .joints import ANKLE_ABOVE_SOLE, JOINT_INDEX, PARENTS, SOLE_BELOW_FOOT_JOINT, rest_offsets_np
 
 FPS = 10.0
 LEGS = {"left": tuple(JOINT_INDEX[f"left_{n}"] for n in ("hip", "knee", "ankle", "foot")),
@@ -43,6 +43,8 @@ class FootLockConfig:
     reach: float = 0.999            # fraction of the leg's length the IK may stretch to
     max_miss: float = 0.04          # m: a planted toe further than this out of the leg's reach is let go
     max_roll_deg: float = 30.0      # heel lift about a planted toe that a stretched leg may add (push-offs reach 30+)
+    ground: bool = True             # a planted foot rests on the floor (its lower end, toe or heel, at the floor's
+                                    # height) rather than where its toe touched down, up to touch_height above it
     swing_speed: float = 1.0        # m/s: a free toe this fast and under touch_height is skating: it is lifted ...
     swing_lift: float = 0.3         # ... its sole raised to this fraction of the frame's travel (a 15 cm step: 4.5 cm) ...
     max_swing_lift: float = 0.05    # ... at most this high (m; real walks' toes faster than 1 m/s: sole p10 3.5, p50 6.8 cm)
@@ -200,6 +202,17 @@ class FootLock:
         return roll_about_toe(foot, _OFFSETS[leg[3]], toe, joints[leg[0]], self._reach(leg),
                               math.radians(self.cfg.max_roll_deg))
 
+    def _grounded(self, anchor: np.ndarray, foot_rot: np.ndarray, leg: tuple[int, int, int, int],
+                  floor: float) -> np.ndarray:
+        """The planted toe's point: `anchor` across the floor, at the height where the foot, turned `foot_rot`,
+        rests on the floor with its lower end (the toe, or the heel while the toes point up)."""
+        if not self.cfg.ground:
+            return anchor
+        heel_above_toe = -float((foot_rot @ _OFFSETS[leg[3]])[2]) - ANKLE_ABOVE_SOLE + SOLE_BELOW_FOOT_JOINT
+        out = anchor.copy()
+        out[2] = floor + SOLE_BELOW_FOOT_JOINT + max(0.0, -heel_above_toe)
+        return out
+
     def _contact(self, side: str, toe: np.ndarray, floor: float) -> bool:
         prev = self._prev_toe[side]
         speed = 0.0 if prev is None else float(np.linalg.norm(toe[:2] - prev[:2]) * FPS)
@@ -234,8 +247,9 @@ class FootLock:
             if glob is None:                    # the first leg that is solved: work on copies
                 out, glob = local_rot.copy(), world_rot.copy()
             generated_foot = glob[leg[2]].copy()
+            toe_held = None
             if self._anchor[side] is not None:
-                anchor = self._anchor[side]
+                anchor = self._grounded(self._anchor[side], generated_foot, leg, floor)
                 # whether the contact holds is judged on the foot as generated, as if it could not roll: a roll
                 # never keeps a toe planted that the model has moved on from (its swing would then snap)
                 miss = _norm(anchor - generated_foot @ _OFFSETS[leg[3]] - joints[leg[0]]) - self._reach(leg)
@@ -246,10 +260,11 @@ class FootLock:
                                      self.cfg.max_miss)
                 if held:
                     contacts[n] = True
+                    toe_held = anchor
                 else:                                   # out of reach: let this foot go
-                    self._fade[side] = (self.cfg.fade_frames, self._anchor[side])
+                    self._fade[side] = (self.cfg.fade_frames, anchor)
                     self._anchor[side] = None
-            toe_out = self._anchor[side] if self._anchor[side] is not None else toe
+            toe_out = toe_held if self._anchor[side] is not None else toe
             if self._anchor[side] is None:
                 target = None
                 if self._fade[side] is not None:

@@ -35,6 +35,10 @@ REST_JOINTS_ZUP: tuple[tuple[float, float, float], ...] = (
 )
 # The foot joints sit above the sole; this lifts a standing rest body so its soles touch z = 0.
 SOLE_BELOW_FOOT_JOINT = 0.02
+# the heel's sole lies this far below the ankle joint of a body standing flat (rest pose, soles on the floor)
+ANKLE_ABOVE_SOLE = (REST_JOINTS_ZUP[JOINT_INDEX["left_ankle"]][2]
+                    - min(REST_JOINTS_ZUP[JOINT_INDEX[f"{side}_foot"]][2] for side in ("left", "right"))
+                    + SOLE_BELOW_FOOT_JOINT)
 LEFT_HIP, RIGHT_HIP = JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]
 FOOT_JOINTS = (JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"],
                JOINT_INDEX["left_foot"], JOINT_INDEX["right_foot"])

@@ -218,3 +218,27 @@ def test_a_held_toe_catching_up_after_release_steps_instead_of_skating():
     assert _dragged_steps(out) == 0                                              # ... and now step
     held = np.linalg.norm(np.diff(out[..., :2], axis=0), axis=-1) < 1e-6
     assert held.mean() > 0.5                                                     # the toes are still held most frames
+
+
+@pytest.mark.parametrize("sole_height", [0.02, -0.01])
+def test_a_planted_foot_rests_on_the_floor_wherever_its_toe_touched_down(sole_height: float):
+    """A crouched body whose soles hover 2 cm above the floor or sink 1 cm into it, sliding slowly: its held feet
+    are put on the floor (the lower of toe and heel at the floor's height), not held where they touched down."""
+    from model_runtime.footlock import FootLockConfig
+    from model_runtime.joints import ANKLE_ABOVE_SOLE, SOLE_BELOW_FOOT_JOINT
+    rot, pelvis = _sliding_stance(frames=6, slide=0.005)
+    pelvis[:, 2] += sole_height
+    floor = 0.0
+
+    def lowest(joints: np.ndarray) -> np.ndarray:            # each foot's toe or heel, whichever is lower
+        return np.minimum(joints[[10, 11], 2] - SOLE_BELOW_FOOT_JOINT, joints[[7, 8], 2] - ANKLE_ABOVE_SOLE)
+
+    for ground in (True, False):
+        lock = FootLock(FootLockConfig(ground=ground))
+        for p in pelvis:
+            joints, glob = forward_kinematics_np(rot, p, world_rotations=True)
+            cleaned, contacts = lock.apply(rot, joints, glob, floor)
+            assert contacts.all()
+            expected = np.full(2, floor) if ground else lowest(joints)          # without it: as generated
+            assert lowest(forward_kinematics_np(cleaned, p)) == pytest.approx(expected, abs=1e-6)
+    assert np.abs(lowest(joints) - floor).min() > 0.005                         # the body was off the floor

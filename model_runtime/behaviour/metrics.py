@@ -14,7 +14,7 @@ from ..data.pairs import min_clearance as min_joint_clearance  # noqa: F401
 from ..evaluation.metrics import FEET as TOES  # SMPL-X "foot" joints sit at the toe base
 from ..evaluation.metrics import facing_error_deg  # noqa: F401
 from ..evaluation.metrics import grounded_foot_speeds
-from ..joints import JOINT_INDEX, REST_JOINTS_ZUP, SOLE_BELOW_FOOT_JOINT
+from ..joints import ANKLE_ABOVE_SOLE, JOINT_INDEX, SOLE_BELOW_FOOT_JOINT
 
 FPS = 10.0
 SEAM_PERIOD = 8                 # model frames per segment: frame k * 8 (k >= 1) starts a new segment
@@ -33,9 +33,6 @@ GLIDE_SPEED = 4.0               # m/s: a pelvis step faster than this between tw
 ANKLES = (JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"])
 WRISTS = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
 SHOULDERS = (JOINT_INDEX["left_shoulder"], JOINT_INDEX["right_shoulder"])
-# the heel's sole lies this far below the ankle joint of a body standing flat (rest pose, soles on the floor)
-ANKLE_ABOVE_SOLE = (REST_JOINTS_ZUP[ANKLES[0]][2] - min(REST_JOINTS_ZUP[t][2] for t in TOES)
-                    + SOLE_BELOW_FOOT_JOINT)
 
 
 def goal_arrival(ego: np.ndarray, goal: Sequence[float], limit_frames: int,
