@@ -6,9 +6,10 @@ the model stays on the motion it was trained on, and applies the lock to what it
 
 A foot is in contact when its toe's sole is near the floor and the toe moves slowly (with hysteresis).
 At touch-down the toe's position is stored; while in contact the leg is solved so that, with the foot
-turned as the model generated it, the toe stays on that point. Where the pelvis has moved past the leg's reach
-(a push-off the model stretched a little too far) the foot rolls about the toe, the heel lifting as in a real
-push-off, so the toe stays put. After lift-off the correction fades out over a few frames instead of snapping.
+turned as the model generated it, the toe stays on that point across the floor and the foot rests on the floor
+(its toe, or its heel while the toes point up, at the floor's height), wherever within touch_height of it the
+toe touched down. Where the pelvis has moved past the leg's reach (a push-off the model stretched a little too
+far) the foot rolls about the toe, the heel lifting as in a real push-off, so the toe stays put. After lift-off the correction fades out over a few frames instead of snapping.
 When the pelvis has moved well out of the leg's reach (judged on the foot as generated) the contact is released
 early.
 
@@ -45,9 +46,9 @@ class FootLockConfig:
     max_roll_deg: float = 30.0      # heel lift about a planted toe that a stretched leg may add (push-offs reach 30+)
     ground: bool = True             # a planted foot rests on the floor (its lower end, toe or heel, at the floor's
                                     # height) rather than where its toe touched down, up to touch_height above it
-    swing_speed: float = 1.0        # m/s: a free toe this fast and under touch_height is skating: it is lifted ...
-    swing_lift: float = 0.3         # ... its sole raised to this fraction of the frame's travel (a 15 cm step: 4.5 cm) ...
-    max_swing_lift: float = 0.05    # ... at most this high (m; real walks' toes faster than 1 m/s: sole p10 3.5, p50 6.8 cm)
+    swing_speed: float = 1.0        # m/s: a free toe this fast and under touch_height is skating: it is lifted,
+    swing_lift: float = 0.3         # its sole raised to this fraction of the frame's travel (15 cm: 4.5 cm),
+    max_swing_lift: float = 0.05    # at most this high (m; real walks' toes past 1 m/s: sole p10 3.5, p50 6.8 cm)
 
 
 # 3-vector helpers: np.cross and np.linalg.norm cost tens of microseconds on one small vector (axis handling),
@@ -234,7 +235,8 @@ class FootLock:
             toe = joints[leg[3]]
             in_contact = self._contact(side, toe, floor)
             self._prev_toe[side] = toe.copy()
-            if in_contact and self._anchor[side] is None and self.locks and self._jump_to(side, toe) >= self.cfg.swing_speed:
+            catching_up = self.locks and self._jump_to(side, toe) >= self.cfg.swing_speed
+            if in_contact and self._anchor[side] is None and catching_up:
                 in_contact = False              # a catch-up still under way: land it next frame, lifted on the way
             if in_contact and self._anchor[side] is None:
                 self._anchor[side] = toe.copy()
