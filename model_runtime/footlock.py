@@ -203,13 +203,13 @@ class FootLock:
         return roll_about_toe(foot, _OFFSETS[leg[3]], toe, joints[leg[0]], self._reach(leg),
                               math.radians(self.cfg.max_roll_deg))
 
-    def _grounded(self, anchor: np.ndarray, foot_rot: np.ndarray, leg: tuple[int, int, int, int],
-                  floor: float) -> np.ndarray:
-        """The planted toe's point: `anchor` across the floor, at the height where the foot, turned `foot_rot`,
-        rests on the floor with its lower end (the toe, or the heel while the toes point up)."""
+    def _grounded(self, anchor: np.ndarray, toe_from_ankle: np.ndarray, floor: float) -> np.ndarray:
+        """The planted toe's point: `anchor` across the floor, at the height where the foot (its toe at
+        `toe_from_ankle` from its ankle) rests on the floor with its lower end (the toe, or the heel while the toes
+        point up)."""
         if not self.cfg.ground:
             return anchor
-        heel_above_toe = -float((foot_rot @ _OFFSETS[leg[3]])[2]) - ANKLE_ABOVE_SOLE + SOLE_BELOW_FOOT_JOINT
+        heel_above_toe = -float(toe_from_ankle[2]) - ANKLE_ABOVE_SOLE + SOLE_BELOW_FOOT_JOINT
         out = anchor.copy()
         out[2] = floor + SOLE_BELOW_FOOT_JOINT + max(0.0, -heel_above_toe)
         return out
@@ -235,8 +235,8 @@ class FootLock:
             toe = joints[leg[3]]
             in_contact = self._contact(side, toe, floor)
             self._prev_toe[side] = toe.copy()
-            catching_up = self.locks and self._jump_to(side, toe) >= self.cfg.swing_speed
-            if in_contact and self._anchor[side] is None and catching_up:
+            if in_contact and self._anchor[side] is None and self.locks \
+                    and self._jump_to(side, toe) >= self.cfg.swing_speed:
                 in_contact = False              # a catch-up still under way: land it next frame, lifted on the way
             if in_contact and self._anchor[side] is None:
                 self._anchor[side] = toe.copy()
@@ -251,10 +251,11 @@ class FootLock:
             generated_foot = glob[leg[2]].copy()
             toe_held = None
             if self._anchor[side] is not None:
-                anchor = self._grounded(self._anchor[side], generated_foot, leg, floor)
+                toe_from_ankle = generated_foot @ _OFFSETS[leg[3]]
+                anchor = self._grounded(self._anchor[side], toe_from_ankle, floor)
                 # whether the contact holds is judged on the foot as generated, as if it could not roll: a roll
                 # never keeps a toe planted that the model has moved on from (its swing would then snap)
-                miss = _norm(anchor - generated_foot @ _OFFSETS[leg[3]] - joints[leg[0]]) - self._reach(leg)
+                miss = _norm(anchor - toe_from_ankle - joints[leg[0]]) - self._reach(leg)
                 held = miss <= self.cfg.max_miss
                 if held:                                # only a held toe is worth rolling the foot for
                     foot = self._rolled(generated_foot, leg, anchor, joints)

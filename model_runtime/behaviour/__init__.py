@@ -17,6 +17,5 @@ from .metrics import (SEAM_PERIOD, dragged_toe_percent, facing_error_deg, frames
 from .scenarios import FAMILIES, SPLIT_SEEDS, Box, Episode, draw_episodes
 
 __all__ = ["FAMILIES", "SPLIT_SEEDS", "Box", "Episode", "draw_episodes", "SEAM_PERIOD", "dragged_toe_percent",
-           "facing_error_deg",
-           "frames_inside_boxes", "goal_arrival", "min_joint_clearance", "net_yaw_deg", "planted_toe_speed",
-           "seam_ratio", "standing_drift_m"]
+           "facing_error_deg", "frames_inside_boxes", "goal_arrival", "min_joint_clearance", "net_yaw_deg",
+           "planted_toe_speed", "seam_ratio", "standing_drift_m"]

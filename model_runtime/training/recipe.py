@@ -193,11 +193,11 @@ def _listed(v):
     return [_listed(x) for x in v] if isinstance(v, tuple) else v
 
 
-# `train --windows NAME`. "captured": the windows as the data holds them, what `train all` uses for every stage.
-# The anchored rollout recipe ("setoffs_rollout_anchored") and its variants
+# The anchored rollout recipe ("setoffs_rollout_anchored"), which its variants are derived from
 ROLLOUT_ANCHORED = WindowRecipe(setoff_share=0.5, hhi_guidance=6.0, hhi_rollout=100.0, rollout_seam=0.05,
                                 rollout_skate=10.0, rollout_glide=0.0, anchor=10.0)
 
+# `train --windows NAME`. "captured": the windows as the data holds them, what `train all` uses for every stage.
 # "balanced": what the shipped prior trained 2,000 steps further on before the "kicks" steps (MODEL_CARD.md, "How
 # these weights were made"), chosen on the val split among four such fine-tunes (the model card's "The prior trained
 # further"). "kicks": the shipped decoder's 4,000 and prior's 1,500 last steps.
