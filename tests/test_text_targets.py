@@ -141,6 +141,32 @@ def test_the_suite_reports_text_targets_references_and_tables(tiny_model, small_
     assert "| a person runs | run | no | speed_mps |" in printed and "2.50 (1 clip)" in printed
 
 
+def test_the_table_option_joins_reports_and_keeps_the_real_clip_references(tmp_path, capsys):
+    """The partner families and the text family run separately (the text family with a library): joined, the
+    tables show both, and the text run's real references win over the other run's "absent" placeholder."""
+    text = {"split": "test", "control": True, "families": {"text": {"alpha=1": {"prompts": {}, "kinds": {
+        "run": {"prompts": 3, "statistic": "speed_mps", "measured": 2.1, "target": ">= 2 m/s", "pass": True}},
+        "passed": {"prompts": 0, "prompts_judged": 0, "held_out_prompts": 0, "held_out_prompts_judged": 0,
+                   "kinds": 1, "kinds_judged": 1}}}},
+        "reference": {"text": {"run": {"statistic": "speed_mps", "clips": 4, "split": "val", "mean": 2.6}}}}
+    partner = {"split": "test", "control": True, "reference": {"text": {"absent": "no clip library given"}},
+               "families": {"crossing": {"alpha=1": {"episodes": 48, "percent_under_10cm": 4.2, "seam_ratio": 1.1}}}}
+    paths = []
+    for name, rep in (("partner", partner), ("text", text)):
+        paths.append(tmp_path / f"{name}.json")
+        paths[-1].write_text(json.dumps(rep))
+    assert behaviour_main(["--table", *map(str, paths)]) == 0
+    printed = capsys.readouterr().out
+    assert "| >= 90 % at alpha 1 | 95.8 % |" in printed
+    assert "| **run: all 3 prompts** | run | | speed_mps | 2.10 | >= 2 m/s | yes | 2.60 (4 held-out clips) |" in printed
+    assert behaviour_main(["--table", str(paths[0]), str(paths[0])]) == 2
+    assert "more than one report" in capsys.readouterr().err
+    other = tmp_path / "val.json"
+    other.write_text(json.dumps({**text, "split": "val"}))
+    assert behaviour_main(["--table", str(paths[0]), str(other)]) == 2
+    assert "differ in split" in capsys.readouterr().err
+
+
 def test_the_table_option_refuses_a_file_that_is_no_report(tmp_path, capsys):
     bad = tmp_path / "bad.json"
     bad.write_text("[1, 2]")

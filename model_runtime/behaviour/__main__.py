@@ -25,21 +25,28 @@ def _jsonable(x):
     return x
 
 
-def _print_tables(path: str) -> int:
-    """Markdown tables of a saved --json report."""
+def _print_tables(paths: list[str]) -> int:
+    """Markdown tables of saved --json reports, joined into one."""
     from pathlib import Path
 
-    from .tables import report_tables
+    from .tables import merge_reports, report_tables
+    reports = []
+    for path in paths:
+        try:
+            reports.append(json.loads(Path(path).read_text(encoding="utf-8")))
+        except OSError as exc:
+            print(f"error: cannot read {path} ({exc.strerror or exc}); give a report saved with --json",
+                  file=sys.stderr)
+            return 2
+        except ValueError:
+            print(f"error: {path} is not JSON; give a report saved with --json", file=sys.stderr)
+            return 2
+    path = " + ".join(paths)
     try:
-        report = json.loads(Path(path).read_text(encoding="utf-8"))
-    except OSError as exc:
-        print(f"error: cannot read {path} ({exc.strerror or exc}); give a report saved with --json", file=sys.stderr)
+        text = report_tables(merge_reports(reports))
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return 2
-    except ValueError:
-        print(f"error: {path} is not JSON; give a report saved with --json", file=sys.stderr)
-        return 2
-    try:
-        text = report_tables(report)
     except (KeyError, TypeError, AttributeError) as exc:
         print(f"error: {path} is not a behaviour report ({type(exc).__name__}: {exc}); give one saved with --json",
               file=sys.stderr)
@@ -83,8 +90,9 @@ def main(argv: list[str] | None = None) -> int:
                          "rolled out with --diversity-seeds seeds each (100 frames a take), pose distance "
                          "between seeds against real takes of the same caption")
     ap.add_argument("--diversity-seeds", type=int, default=DIVERSITY_SEEDS, help="seeds per diversity prompt")
-    ap.add_argument("--table", default=None, metavar="REPORT_JSON",
-                    help="print the markdown tables (text family, diversity) of a saved --json report and exit")
+    ap.add_argument("--table", default=None, nargs="+", metavar="REPORT_JSON",
+                    help="print the markdown tables (targets, text family, diversity) of saved --json reports, "
+                         "joined (e.g. the partner families' run and the text family's), and exit")
     args = ap.parse_args(argv)
     if args.table:
         return _print_tables(args.table)

@@ -1,6 +1,6 @@
 """Markdown tables of a behaviour report's text family and diversity, as README and the model card show them.
 
-    python -m model_runtime.behaviour --table REPORT.json     # from a saved --json report
+    python -m model_runtime.behaviour --table REPORT.json [MORE.json ...]   # saved --json reports, joined
 """
 from __future__ import annotations
 
@@ -125,6 +125,32 @@ def targets_table(report: dict) -> str:
                            for f in dict.fromkeys(f for f, _ in seams))
     foot = f"\nSeam ratio per family (alpha 1 / 0): {per_family}." if seams else ""
     return "\n".join(head + rows) + "\n" + foot
+
+
+def merge_reports(reports: list[dict]) -> dict:
+    """One report from several runs of the suite (e.g. the partner families in one, the text family with a
+    library in another): families, references and diversity joined. Runs must share split and control
+    setting, and no family may appear twice."""
+    if not reports:
+        raise ValueError("no report to merge")
+    out = {k: v for k, v in reports[0].items() if k not in ("families", "reference")}
+    out["families"], out["reference"] = {}, {}
+    for r in reports:
+        for key in ("split", "control"):
+            if r.get(key) != reports[0].get(key):
+                raise ValueError(f"the reports differ in {key} ({reports[0].get(key)!r} and {r.get(key)!r}); "
+                                 "merge runs of one split and one control setting")
+        for name, fam in r.get("families", {}).items():
+            if name in out["families"]:
+                raise ValueError(f"family {name!r} is in more than one report; give each family once")
+            out["families"][name] = fam
+        for name, ref in r.get("reference", {}).items():
+            # a real reference wins over an "absent" placeholder from a run without a library
+            if name not in out["reference"] or "absent" in out["reference"][name]:
+                out["reference"][name] = ref
+        if "diversity" in r:
+            out["diversity"] = r["diversity"]
+    return out
 
 
 def report_tables(report: dict) -> str:
