@@ -79,6 +79,10 @@ class ControlConfig:
                                     # module turns the latent further from what the history alone would make:
                                     # val, the approach family's seam ratio 1.32 with 2, 1.18 with 3; walking
                                     # and standing alone keep 2, where 3 slid walking toes 0.9 -> 10 cm/s)
+    still_partner_seam_weight: float = 250.0  # seam_weight for an ego facing a partner standing within reach,
+                                    # blended in by alpha_hhi: the approach's pops were there (val, 144 approach
+                                    # episodes: seam ratio 1.28 at 100, 1.15 at 250, 1.10 at 400); 200 everywhere
+                                    # let a standing ego without a partner drift 0.38 m a minute
     keep_weight: float = 5.0        # the rest of the segment stays as the model made it (3 -> 5 on val: walking
                                     # forward turned 24 -> 16 deg per 20 s, the other targets held)
     seam_step_size: float = 1.0     # each this long at most (longer ones made a standing body glide away)
@@ -348,6 +352,10 @@ class SegmentCosts:
             self.passes = _Rows([ts[i].pass_away is not None for i in p.rows])
             if self.passes.any:
                 self.away = torch.stack([ts[p.rows[k]].pass_away for k in self.passes.rows])
+        # the seam cost's weight per row: heavier where an ego faces a partner standing within reach
+        self.seam_w = _weight([cfg.seam_weight + (cfg.still_partner_seam_weight - cfg.seam_weight) * t.alpha_hhi
+                               if t.partner is not None and t.partner_still and t.alpha_hhi > 0.0
+                               else cfg.seam_weight for t in ts])
         s = self.scene = _Rows([t.alpha_hsi > 0.0 for t in ts])
         if s.any:
             on = [ts[i] for i in s.rows]
@@ -374,7 +382,7 @@ class SegmentCosts:
         cfg = self.cfg
         cost = foot_cost(joints, self.before_joints, cfg)
         if self.keep is not None and self.earlier_joints is not None:
-            cost = cost + cfg.seam_weight * seam_cost(joints, self.before_joints, self.earlier_joints)
+            cost = cost + self.seam_w * seam_cost(joints, self.before_joints, self.earlier_joints)
             cost = cost + cfg.keep_weight * (joints[:, 2:] - self.keep[:, 2:]).pow(2).sum((-3, -2, -1))
         p = self.partner
         if p.any:
@@ -462,8 +470,9 @@ class SegmentCosts:
         if c["keep"] is not None and c["earlier"] is not None:
             sc, sg = cg.seam(joints, c["before"], c["earlier"])
             diff = joints[:, 2:] - c["keep"][:, 2:]
-            cost = cost + cfg.seam_weight * sc + cfg.keep_weight * (diff * diff).sum((1, 2, 3))
-            g_j = g_j + cfg.seam_weight * sg
+            seam_w = self.seam_w.double().numpy() if isinstance(self.seam_w, torch.Tensor) else self.seam_w
+            cost = cost + seam_w * sc + cfg.keep_weight * (diff * diff).sum((1, 2, 3))
+            g_j = g_j + np.reshape(seam_w, (-1, 1, 1, 1)) * sg
             g_j[:, 2:] += 2.0 * cfg.keep_weight * diff
         p = self.partner
         if p.any:

@@ -53,7 +53,7 @@ def batch(stats: FeatureStats, keep: bool, body_share: float = 0.0):
     g = torch.Generator().manual_seed(7)
     scene = box_scene()
     field, floor = DistanceField(scene), FloorMap(scene)
-    cfg = ControlConfig(skate_body_share=body_share, glide_weight=50.0)
+    cfg = ControlConfig(skate_body_share=body_share, glide_weight=50.0, still_partner_seam_weight=300.0)
     segs = torch.stack([walking_segment(g, (0.1, -0.6), (0.0, -0.08)),     # walks into the box, partner beside
                         walking_segment(g, (1.0, 0.0), (0.01, 0.0)),       # stands near a still partner, near its goal
                         walking_segment(g, (-0.5, 0.5), (0.0, 0.05)),      # no partner, far goal behind
@@ -105,8 +105,10 @@ def test_numpy_costs_and_gradients_match_autograd(stats, keep, body_share):
 
 def test_every_cost_is_exercised(stats):
     """The batch above takes each cost on some row: partner, passing, facing a still partner, scene, goal with
-    walking distance, resting near a goal, facing a far goal, the feet, the floor and a glide past a partner."""
+    walking distance, resting near a goal, facing a far goal, the feet, the floor, a glide past a partner and a
+    heavier seam beside a still partner, blended by alpha_hhi 0.5."""
     costs, feat_n = batch(stats, keep=False)
+    assert costs.seam_w.tolist() == [100.0, 200.0, 100.0, 100.0]
     assert costs.partner.rows == [0, 1] and costs.passes.rows == [0] and costs.still == [False, True]
     assert costs.scene.rows == [0, 1, 2] and costs.field is not None and costs.walk is not None
     assert costs.far == [True, False, True]
