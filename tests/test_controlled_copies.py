@@ -87,6 +87,21 @@ def test_the_copies_are_the_controlled_runtime_s_own_motion_and_become_hhi_pairs
         assert clearance(clips.joints(p.ego), p.partner) >= AVOID_CLEARANCE
 
 
+def test_the_copies_can_pin_the_control_they_are_made_with(lib, monkeypatch):
+    """A recipe's copies stay what an earlier runtime made when its control settings are given."""
+    from model_runtime.behaviour import suite
+    from model_runtime.control import ControlConfig
+    seen, real = [], suite.roll_out_frames
+
+    def spy(model, ep, alpha, **options):
+        seen.append(options.get("control_config"))
+        return real(model, ep, alpha, **options)
+    monkeypatch.setattr(suite, "roll_out_frames", spy)
+    pinned = ControlConfig(still_partner_seam_weight=100.0)
+    cc.controlled_copies(load_model(), lib, 1, seed=11, control_config=pinned)
+    assert seen == [pinned] and seen[0] is pinned
+
+
 def test_the_licence_tag_follows_the_model_s_data():
     class Meta:
         def __init__(self, meta):
@@ -98,7 +113,9 @@ def test_the_licence_tag_follows_the_model_s_data():
 
 @pytest.mark.parametrize("args, word", [(["--seed", "1001"], "behaviour-suite split"),
                                         (["--episodes", "0"], "--episodes"),
-                                        (["--approach-share", "1.5"], "--approach-share")])
+                                        (["--approach-share", "1.5"], "--approach-share"),
+                                        (["--control-set", "no_such_setting=1"], "--control-set"),
+                                        (["--control-set", "seam_weight=heavy"], "not a number")])
 def test_the_command_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path, lib, capsys, args, word):
     src = lib.save(tmp_path / "lib.npz")
     out = tmp_path / "out.npz"

@@ -21,7 +21,7 @@ dataset tag is the model's licence: "bandai" (non-commercial) when the model fil
 "cmu".
 
     python -m model_runtime.training.controlled_copies --library CLIPS.npz --out CLIPS_PLUS.npz \\
-        [--model FILE] [--episodes N] [--approach-share S] [--seed S]
+        [--model FILE] [--episodes N] [--approach-share S] [--seed S] [--control-set NAME=VALUE ...]
 
 writes the library with the copies appended; `python -m model_runtime.train hhi --library CLIPS_PLUS.npz ...`
 then trains on them beside the usual pairs, drawn recipe.CONTROLLED_COPY_WEIGHT times as often as their frame
@@ -52,6 +52,7 @@ from ..data.stretches import WalkPool, calm_standing, clearance, moved, partner_
 from ..data.turns import pivot_turn
 
 if TYPE_CHECKING:
+    from ..control import ControlConfig
     from ..model import ReMoGenModel
 
 KIND = "ctlavoid"            # a crossing walker (pair kind avoid_walker)
@@ -114,11 +115,14 @@ def draw_approach(lib: ClipLibrary, clips: ClipCache, pool: WalkPool, stands: li
     return Encounter(APPROACH_KIND, STAND_TEXT, seed, src, rot, pel, pose_joints(rot, pel).astype(np.float32))
 
 
-def roll_out(model: "ReMoGenModel", ep: Encounter) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def roll_out(model: "ReMoGenModel", ep: Encounter, control_config: "ControlConfig | None" = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(joints (T, 22, 3), local rotations (T, 22, 4) w-first, pelvis (T, 3)) of the ego, rolled out as the
-    behaviour suite rolls out its episodes, with the runtime's defaults (control on)."""
+    behaviour suite rolls out its episodes, with the runtime's defaults (control on; `control_config` None: the
+    default settings)."""
     from ..behaviour.suite import roll_out_frames
-    frames = roll_out_frames(model, Episode(ep.kind, 0, ep.seed, ep.text, ep.frames, partner=ep.joints), 1.0)
+    frames = roll_out_frames(model, Episode(ep.kind, 0, ep.seed, ep.text, ep.frames, partner=ep.joints), 1.0,
+                             control_config=control_config)
     return (np.stack([f.joints for f in frames]), np.stack([f.local_rotations for f in frames]),
             np.stack([f.position for f in frames]))
 
@@ -129,10 +133,11 @@ def model_licence_tag(model: "ReMoGenModel") -> str:
 
 
 def controlled_copies(model: "ReMoGenModel", lib: ClipLibrary, episodes: int, seed: int = SEED,
-                      approach_share: float = 0.0, progress: Callable[[int, int], None] = lambda done, kept: None
-                      ) -> tuple[list[NewClip], dict]:
+                      approach_share: float = 0.0, progress: Callable[[int, int], None] = lambda done, kept: None,
+                      control_config: "ControlConfig | None" = None) -> tuple[list[NewClip], dict]:
     """Up to `episodes` controlled copies (each with its partner clip): crossings, and walkers who come up and
-    stop for `approach_share` of them; and counts of what was drawn."""
+    stop for `approach_share` of them; and counts of what was drawn. `control_config` pins the test-time control
+    the copies are made with (None: the runtime's defaults, which change as the runtime does)."""
     train = lib.split("train")
     clips = ClipCache(lib, train)
     pool = WalkPool.of(clips, walks(lib, clips, train))
@@ -150,7 +155,7 @@ def controlled_copies(model: "ReMoGenModel", lib: ClipLibrary, episodes: int, se
         if ep is None:
             counts["no_walk"] += 1
             continue
-        joints, rots, pelvis = roll_out(model, ep)
+        joints, rots, pelvis = roll_out(model, ep, control_config)
         if not np.isfinite(joints).all() or clearance(joints, ep.joints) < AVOID_CLEARANCE:
             counts["too_close"] += 1
             progress(k + 1, counts["kept"])
@@ -181,8 +186,12 @@ def main(argv: list[str] | None = None) -> int:
                     help="share of the episodes where the walker comes up and stops instead of crossing (default 0)")
     ap.add_argument("--seed", type=int, default=SEED, help=f"generator seed (default {SEED}; the behaviour "
                                                            "suite's val and test splits use 1001 and 2002)")
+    ap.add_argument("--control-set", action="append", default=[], metavar="NAME=VALUE",
+                    help="override one test-time control setting the copies are made with (a field of "
+                         "model_runtime.ControlConfig); repeatable. To remake copies an earlier runtime made")
     args = ap.parse_args(argv)
     from .. import load_model
+    from ..behaviour.control_overrides import control_config_from
     from ..behaviour.scenarios import SPLIT_SEEDS
     from ..errors import RemogenError
     try:
@@ -192,9 +201,10 @@ def main(argv: list[str] | None = None) -> int:
             raise RemogenError(f"--approach-share must be in 0..1, got {args.approach_share}")
         if args.seed in SPLIT_SEEDS.values():
             raise RemogenError(f"--seed {args.seed} is a behaviour-suite split's seed; pick another")
+        control_config = control_config_from(args.control_set)
         lib = ClipLibrary.load(args.library)
         model = load_model(args.model)
-    except (RemogenError, OSError) as exc:
+    except (RemogenError, OSError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     t0 = time.time()
@@ -203,7 +213,8 @@ def main(argv: list[str] | None = None) -> int:
         if done % 50 == 0 or done == args.episodes:
             print(f"{done}/{args.episodes} episodes, {kept} kept ({time.time() - t0:.0f} s)", file=sys.stderr)
 
-    made, counts = controlled_copies(model, lib, args.episodes, args.seed, args.approach_share, progress)
+    made, counts = controlled_copies(model, lib, args.episodes, args.seed, args.approach_share, progress,
+                                     control_config)
     out, _ = extend_library(lib, made)
     path = out.save(args.out)
     print(f"{counts['kept']} of {counts['drawn']} episodes kept ({counts['too_close']} came within "
