@@ -353,9 +353,10 @@ class SegmentCosts:
             if self.passes.any:
                 self.away = torch.stack([ts[p.rows[k]].pass_away for k in self.passes.rows])
         # the seam cost's weight per row: heavier where an ego faces a partner standing within reach
-        self.seam_w = _weight([cfg.seam_weight + (cfg.still_partner_seam_weight - cfg.seam_weight) * t.alpha_hhi
-                               if t.partner is not None and t.partner_still and t.alpha_hhi > 0.0
-                               else cfg.seam_weight for t in ts])
+        extra = cfg.still_partner_seam_weight - cfg.seam_weight
+        self.seam_weights = _weight([cfg.seam_weight + extra * t.alpha_hhi
+                                     if t.partner is not None and t.partner_still and t.alpha_hhi > 0.0
+                                     else cfg.seam_weight for t in ts])
         s = self.scene = _Rows([t.alpha_hsi > 0.0 for t in ts])
         if s.any:
             on = [ts[i] for i in s.rows]
@@ -382,7 +383,7 @@ class SegmentCosts:
         cfg = self.cfg
         cost = foot_cost(joints, self.before_joints, cfg)
         if self.keep is not None and self.earlier_joints is not None:
-            cost = cost + self.seam_w * seam_cost(joints, self.before_joints, self.earlier_joints)
+            cost = cost + self.seam_weights * seam_cost(joints, self.before_joints, self.earlier_joints)
             cost = cost + cfg.keep_weight * (joints[:, 2:] - self.keep[:, 2:]).pow(2).sum((-3, -2, -1))
         p = self.partner
         if p.any:
@@ -470,7 +471,8 @@ class SegmentCosts:
         if c["keep"] is not None and c["earlier"] is not None:
             sc, sg = cg.seam(joints, c["before"], c["earlier"])
             diff = joints[:, 2:] - c["keep"][:, 2:]
-            seam_w = self.seam_w.double().numpy() if isinstance(self.seam_w, torch.Tensor) else self.seam_w
+            seam_w = self.seam_weights
+            seam_w = seam_w.double().numpy() if isinstance(seam_w, torch.Tensor) else seam_w
             cost = cost + seam_w * sc + cfg.keep_weight * (diff * diff).sum((1, 2, 3))
             g_j = g_j + np.reshape(seam_w, (-1, 1, 1, 1)) * sg
             g_j[:, 2:] += 2.0 * cfg.keep_weight * diff

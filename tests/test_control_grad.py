@@ -108,7 +108,7 @@ def test_every_cost_is_exercised(stats):
     walking distance, resting near a goal, facing a far goal, the feet, the floor, a glide past a partner and a
     heavier seam beside a still partner, blended by alpha_hhi 0.5."""
     costs, feat_n = batch(stats, keep=False)
-    assert costs.seam_w.tolist() == [100.0, 200.0, 100.0, 100.0]
+    assert costs.seam_weights.tolist() == [100.0, 200.0, 100.0, 100.0]
     assert costs.partner.rows == [0, 1] and costs.passes.rows == [0] and costs.still == [False, True]
     assert costs.scene.rows == [0, 1, 2] and costs.field is not None and costs.walk is not None
     assert costs.far == [True, False, True]
