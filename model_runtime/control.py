@@ -353,10 +353,11 @@ class SegmentCosts:
             if self.passes.any:
                 self.away = torch.stack([ts[p.rows[k]].pass_away for k in self.passes.rows])
         # the seam cost's weight per row: heavier where an ego faces a partner standing within reach
-        extra = cfg.still_partner_seam_weight - cfg.seam_weight
-        self.seam_weights = _weight([cfg.seam_weight + extra * t.alpha_hhi
-                                     if t.partner is not None and t.partner_still and t.alpha_hhi > 0.0
-                                     else cfg.seam_weight for t in ts])
+        weights = [cfg.seam_weight] * len(ts)
+        for k, i in enumerate(p.rows):
+            if self.still[k]:
+                weights[i] += (cfg.still_partner_seam_weight - cfg.seam_weight) * ts[i].alpha_hhi
+        self.seam_weights = _weight(weights)
         s = self.scene = _Rows([t.alpha_hsi > 0.0 for t in ts])
         if s.any:
             on = [ts[i] for i in s.rows]
@@ -431,7 +432,9 @@ class SegmentCosts:
         c = {"mean": n(self.stats.mean), "std": n(self.stats.std), "before": n(self.before_joints),
              "before_xy": n(self.before_xy), "history_xy": n(self.history_xy),
              "earlier": None if self.earlier_joints is None else n(self.earlier_joints),
-             "keep": None if self.keep is None else n(self.keep)}
+             "keep": None if self.keep is None else n(self.keep),
+             "seam_w": np.reshape(n(self.seam_weights) if torch.is_tensor(self.seam_weights)
+                                  else np.float64(self.seam_weights), (-1, 1, 1, 1))}
         if self.partner.any:
             c["future"] = n(self.partner_future)
             c["still"] = np.asarray(self.still, bool)
@@ -471,10 +474,8 @@ class SegmentCosts:
         if c["keep"] is not None and c["earlier"] is not None:
             sc, sg = cg.seam(joints, c["before"], c["earlier"])
             diff = joints[:, 2:] - c["keep"][:, 2:]
-            seam_w = self.seam_weights
-            seam_w = seam_w.double().numpy() if isinstance(seam_w, torch.Tensor) else seam_w
-            cost = cost + seam_w * sc + cfg.keep_weight * (diff * diff).sum((1, 2, 3))
-            g_j = g_j + np.reshape(seam_w, (-1, 1, 1, 1)) * sg
+            cost = cost + c["seam_w"][:, 0, 0, 0] * sc + cfg.keep_weight * (diff * diff).sum((1, 2, 3))
+            g_j = g_j + c["seam_w"] * sg
             g_j[:, 2:] += 2.0 * cfg.keep_weight * diff
         p = self.partner
         if p.any:
