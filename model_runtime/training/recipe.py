@@ -103,6 +103,9 @@ TURN_ARRIVAL_WEIGHT = 3.0   # how often their windows are drawn, against their f
 # draws. Measured on val and not shipped: the module learned no better crossing without control from them (README,
 # "Learning the controlled reaction").
 CONTROLLED_COPY_WEIGHT = 20.0
+# Real two-person captures (data/two_person_pairs.py), in a library made by its command: a few seconds a take against
+# hours of derived pairs, so their windows are drawn this many times as often as their frame count says.
+TWO_PERSON_WEIGHT = 20.0
 # Anchored fine-tunes (WindowRecipe.anchor, prior and decoder stages): every snapshot of a plain fine-tune that
 # taught the prior one new thing (slowed or reversed walks) or the decoder the HHI copies also moved something it did
 # before (standing drift, walking yaw, the run or jump kind, the HHI module's footing on the prior's activations).

@@ -25,9 +25,9 @@ from ..data.phrasings import pick_phrasing
 from ..data.stretches import split_style
 from ..features import JOINT_DELTA, ROOT_T, FeatureStats, canonicalize, to_canonical, world_points_to_canonical
 from ..skeleton import NUM_JOINTS, forward_kinematics
-from .recipe import (ANCHORED_KINDS, CONTROLLED_COPY_WEIGHT, REVERSAL_WEIGHT, ROLLOUT_LOOK_AHEAD, SLOW_WALK_CAPTION,
-                     SLOW_WALK_HEADS, SLOW_WALK_SHARE, SLOW_WALK_SPEED, SLOWED_WALK_WEIGHT, STARTUP_WEIGHT,
-                     STILL_CAPTION, STILL_SHARE, STILL_SPEED, STILL_TRAVEL, TURN_ARRIVAL_WEIGHT)
+from .recipe import (ANCHORED_KINDS, CONTROLLED_COPY_WEIGHT, REVERSAL_WEIGHT, ROLLOUT_LOOK_AHEAD, SLOWED_WALK_WEIGHT,
+                     SLOW_WALK_CAPTION, SLOW_WALK_HEADS, SLOW_WALK_SHARE, SLOW_WALK_SPEED, STARTUP_WEIGHT,
+                     STILL_CAPTION, STILL_SHARE, STILL_SPEED, STILL_TRAVEL, TURN_ARRIVAL_WEIGHT, TWO_PERSON_WEIGHT)
 
 FPS = 10.0
 
@@ -105,7 +105,7 @@ SCENE_KIND_WEIGHT = {"detour": 3.0}
 # Derived clips drawn more or less often than their frame count (library.derived_kind -> factor).
 CLIP_KIND_WEIGHT = {"startup": STARTUP_WEIGHT, "reversed": REVERSAL_WEIGHT, "turnarrive": TURN_ARRIVAL_WEIGHT,
                     "slowed": SLOWED_WALK_WEIGHT, "ctlavoid": CONTROLLED_COPY_WEIGHT,
-                    "ctlgreeted": CONTROLLED_COPY_WEIGHT}
+                    "ctlgreeted": CONTROLLED_COPY_WEIGHT, "twoperson": TWO_PERSON_WEIGHT}
 
 
 @dataclass

@@ -23,6 +23,9 @@ partner, one rule per pair:
     face_arrival   a standing clip turned toward a real walker who walks up to it and stops in front of it
                    (`<name>#greeted<k>`, data/face_arrivals.py); the partner is that walker, at least
                    AVOID_CLEARANCE away.
+    two_person     one person of a real two-person capture (`<take>#twoperson<k>`, data/two_person_pairs.py); the
+                   partner is the other person of the same take, as captured: no clearance is asked (real people
+                   touch when they shake hands).
 The first five place bodies from *other* real standing clips, moved rigidly, with a random body scale in
 [0.9, 1.1] and a random timing offset in [-0.5, 0.5] s, never closer than MIN_CLEARANCE to the ego. The
 walking partners of the last four were made with their copy and are stored as clips
@@ -52,12 +55,14 @@ SCALE_RANGE = (0.9, 1.1)  # partner body scale
 MAX_SHIFT = 5             # partner timing offset, frames (0.5 s at 10 fps)
 ARRIVE_DISTANCE = (0.9, 1.2)   # m from where an arrive_face copy stops to its partner's pelvis
 HHI_KINDS = ("approach_face", "greet", "avoid_blocker", "turn_to_face", "arrive_face", "avoid_walker", "step_aside",
-             "follow", "face_arrival")
+             "follow", "face_arrival", "two_person")
 # the pair kind of each kind of derived copy (library.derived_kind); a mirrored copy takes the real-clip rules
 COPY_KINDS = {"turn": "turn_to_face", "arriveface": "arrive_face", "avoid": "avoid_walker",
               "stepaside": "step_aside", "follow": "follow", "greeted": "face_arrival",
-              "walkaside": "step_aside", "ctlavoid": "avoid_walker", "ctlgreeted": "face_arrival"}
-WALKING_PARTNER_KINDS = ("avoid_walker", "step_aside", "follow", "face_arrival")   # the partner is the copy's partner clip
+              "walkaside": "step_aside", "ctlavoid": "avoid_walker", "ctlgreeted": "face_arrival",
+              "twoperson": "two_person"}
+# the partner is the copy's partner clip
+WALKING_PARTNER_KINDS = ("avoid_walker", "step_aside", "follow", "face_arrival", "two_person")
 
 
 @dataclass(eq=False)
@@ -168,15 +173,17 @@ def build_hhi_pairs(lib: ClipLibrary, clip_ids: list[int], seed: int = 0, per_cl
 
 
 def _walking_partner_pair(kind: str, ego: int, clips: ClipCache, index: dict[str, int]) -> HHIPair | None:
-    """The pair of a copy made with its own walking partner, if that partner clip is in the library and keeps
-    the kind's distance on the FK joints."""
+    """The pair of a copy made with its own walking partner (or captured with its real one), if that partner clip
+    is in the library and keeps the kind's distance on the FK joints."""
     k = index.get(partner_clip_name(clips.lib.names[ego]))
     if k is None or clips.lib.frames(k) != clips.lib.frames(ego):
         return None
     ej, pj = clips.joints(ego), clips.joints(k)
     if not np.isfinite(pj).all():
         return None
-    if kind == "follow":
+    if kind == "two_person":
+        ok = True                 # captured together: their distances are real, whatever they are
+    elif kind == "follow":
         ok = np.linalg.norm(ej[:, 0, :2] - pj[:, 0, :2], axis=-1).min() >= FOLLOW_MIN_GAP and \
             min_clearance(ej, pj) >= MIN_CLEARANCE
     else:
