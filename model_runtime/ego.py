@@ -79,6 +79,34 @@ def frames_from_world_features(index: int, feat_world: torch.Tensor, feet: list[
     return out
 
 
+def _frame_pose(frame: EgoFrame) -> tuple[torch.Tensor, torch.Tensor]:
+    """(22, 3, 3) local rotations and (3,) pelvis of a frame a session starts from; InputError when malformed."""
+    rot = quat_to_matrix(torch.as_tensor(np.asarray(frame.local_rotations, np.float32)))
+    pelvis = torch.as_tensor(np.asarray(frame.root, np.float32)[:3, 3])
+    if rot.shape != (NUM_JOINTS, 3, 3) or not torch.isfinite(rot).all() or not torch.isfinite(pelvis).all():
+        raise InputError("reset frame must hold finite (22, 4) local_rotations and a (4, 4) root")
+    return rot, pelvis
+
+
+def _moving_history(frames: Sequence[EgoFrame], history: int) -> torch.Tensor:
+    """The world history of a body continuing from its latest frames (10 fps, oldest first): its last `history`
+    frames, the first one repeated in front when fewer are given. A history row also holds the step to the next
+    frame; the last frame's step is its previous one again (the body keeps its pace and turn)."""
+    frames = list(frames) if isinstance(frames, (list, tuple)) else []
+    if not frames or not all(isinstance(f, EgoFrame) for f in frames):
+        raise InputError("reset frames must be one EgoFrame or a sequence of EgoFrames (10 fps, oldest first)")
+    poses = [_frame_pose(f) for f in frames[-history:]]
+    poses = [poses[0]] * (history - len(poses)) + poses
+    rot = torch.stack([r for r, _ in poses])
+    pelvis = torch.stack([p for _, p in poses])
+    # one frame past the last: the last step repeated (the root's turn and the pelvis's move; the pose held)
+    turn = rot[-1, 0] @ rot[-2, 0].transpose(-1, -2) if history > 1 else torch.eye(3)
+    ahead = rot[-1].clone()
+    ahead[0] = turn @ rot[-1, 0]
+    step = pelvis[-1] - pelvis[-2] if history > 1 else torch.zeros(3)
+    return features_from_pose(torch.cat((rot, ahead[None])), torch.cat((pelvis, (pelvis[-1] + step)[None])))
+
+
 def output_problem(feat_world: torch.Tensor, joints: np.ndarray, rotations: np.ndarray) -> str | None:
     """What is wrong with generated frames, one ego's or a step's stacked for all egos (non-finite or absurdly
     far joints), or None."""
@@ -176,16 +204,18 @@ class Ego:
 
     # ------------------------------------------------------------------ reset
     def start_history(self, root_position: Sequence[float] = (0.0, 0.0, 0.0), yaw: float = 0.0,
-                      frame: EgoFrame | None = None, name: str = "root_position") -> torch.Tensor:
-        """The world history of a body standing at rest on `root_position` facing `yaw`, or holding `frame`.
+                      frame: EgoFrame | Sequence[EgoFrame] | None = None, name: str = "root_position") -> torch.Tensor:
+        """The world history of a body standing at rest on `root_position` facing `yaw`, holding `frame`, or
+        moving on from `frame` given as its latest frames (a sequence at the model's 10 fps, oldest first; the last
+        is where it is now): a walking body then keeps walking at its pace instead of setting off from a stand.
 
         Checks only, changes nothing: reset() applies it. yaw is in radians about +Z; yaw = 0 faces -Y.
         """
+        h = self.cfg.history
+        if frame is not None and not isinstance(frame, EgoFrame):
+            return _moving_history(frame, h)
         if frame is not None:
-            rot = quat_to_matrix(torch.as_tensor(np.asarray(frame.local_rotations, np.float32)))
-            pelvis = torch.as_tensor(np.asarray(frame.root, np.float32)[:3, 3])
-            if rot.shape != (NUM_JOINTS, 3, 3) or not torch.isfinite(rot).all() or not torch.isfinite(pelvis).all():
-                raise InputError("reset frame must hold finite (22, 4) local_rotations and a (4, 4) root")
+            rot, pelvis = _frame_pose(frame)
         else:
             pos = check_point(name, root_position)
             if not math.isfinite(float(yaw)):
@@ -193,7 +223,6 @@ class Ego:
             rot = torch.eye(3).repeat(NUM_JOINTS, 1, 1)
             rot[0] = yaw_matrix(torch.tensor(float(yaw)))
             pelvis = torch.as_tensor(pos) + torch.tensor([0.0, 0.0, standing_pelvis_height()])
-        h = self.cfg.history
         # H + 1 identical frames: a body standing still (zero deltas)
         return features_from_pose(rot.expand(h + 1, -1, -1, -1), pelvis.expand(h + 1, -1))
 

@@ -109,8 +109,9 @@ class ReactionGroup:
 
     # ------------------------------------------------------------------ reset
     def reset(self, root_positions: Sequence | None = None, yaws: Sequence[float] | None = None,
-              frames: Sequence[EgoFrame | None] | None = None) -> None:
-        """Start over: each ego standing at rest on its floor point facing its yaw, or from its frame.
+              frames: Sequence[EgoFrame | Sequence[EgoFrame] | None] | None = None) -> None:
+        """Start over: each ego standing at rest on its floor point facing its yaw, or from its frame, or moving on
+        from its latest frames (a list of EgoFrames at 10 fps, oldest first: Ego.start_history).
 
         One entry per ego in each list given; defaults: the origin, yaw 0 (facing -Y). Bad input changes
         nothing.

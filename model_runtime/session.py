@@ -82,8 +82,9 @@ class ReactionSession:
 
     # ------------------------------------------------------------------ rollout
     def reset(self, root_position: Sequence[float] = (0.0, 0.0, 0.0), yaw: float = 0.0,
-              frame: EgoFrame | None = None) -> None:
-        """Start over standing at rest on the floor point `root_position` facing `yaw`, or from a frame.
+              frame: EgoFrame | Sequence[EgoFrame] | None = None) -> None:
+        """Start over standing at rest on the floor point `root_position` facing `yaw`, or from a frame, or moving
+        on from a list of frames (the body's latest frames at 10 fps, oldest first: a walking body keeps its pace).
 
         yaw is in radians about +Z; yaw = 0 faces -Y (the SMPL-X rest facing, Blender's front view).
         """

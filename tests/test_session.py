@@ -130,6 +130,44 @@ def test_reset_from_frame(tiny_model):
                           atol=1e-4)
 
 
+def test_reset_from_latest_frames_continues_their_motion(tiny_model):
+    """A list of frames (oldest first) starts the ego moving: its history holds them, so their pace is kept."""
+    frames = rollout(tiny_model, 6)
+    h = tiny_model.cfg.history
+    s = ReactionSession(tiny_model, seed=0)
+    s.reset(frame=frames[-h:])
+    hist = s.history_world_features()
+    assert hist.shape[0] == h
+    for k in range(h):     # the history's rows are the frames given, the latest last (as after a step)
+        assert torch.allclose(feature_joints(hist[k]), torch.from_numpy(frames[-h + k].joints), atol=1e-4)
+    # each row's step to the next frame: the real one, and for the last frame its previous step again
+    steps = hist[:, 135:138]                                # the pelvis step (features.py)
+    assert torch.allclose(steps[0], torch.from_numpy(frames[-1].root[:3, 3] - frames[-2].root[:3, 3]), atol=1e-4)
+    assert torch.allclose(steps[-1], steps[-2], atol=1e-5)
+    # the same frames held still give a standing history: a different start
+    s.reset(frame=frames[-1])
+    still = s.history_world_features()
+    assert torch.allclose(feature_joints(still[0]), feature_joints(still[-1]), atol=1e-5)
+    assert not torch.allclose(feature_joints(hist[0]), feature_joints(hist[-1]), atol=1e-3)
+    # more frames than the history: the latest are used; fewer: the first is held in front of them
+    s.reset(frame=frames)
+    assert torch.allclose(s.history_world_features(), hist, atol=1e-5)
+    s.reset(frame=frames[-1:])
+    assert torch.allclose(s.history_world_features(), still, atol=1e-5)
+    assert s.step().joints.shape == (22, 3)
+
+
+@pytest.mark.parametrize("bad", [[], ["frame"], "frame", 3])
+def test_reset_from_bad_frames_says_what_to_pass_and_changes_nothing(tiny_model, bad):
+    s = ReactionSession(tiny_model, seed=0)
+    s.reset(root_position=(1.0, 2.0, 0.0), yaw=0.3)
+    before = s.history_world_features()
+    with pytest.raises(InputError, match="EgoFrame") as err:
+        s.reset(frame=bad)
+    assert "\n" not in str(err.value)
+    assert torch.equal(s.history_world_features(), before)
+
+
 @pytest.mark.parametrize("partner, words", [
     (np.full((22, 3), np.nan), "NaN"),
     (np.full((22, 3), 3.4e38), "beyond"),

@@ -9,7 +9,8 @@ import pytest
 
 from model_runtime.data.two_person import load_pair, load_pairs, pair_files
 from model_runtime.errors import InputError
-from model_runtime.evaluation.real_pairs import evaluate_takes, main as real_pairs_main, path_comparison, replay
+from model_runtime.evaluation.real_pairs import (evaluate_takes, main as real_pairs_main, path_comparison, replay,
+                                                start_frames)
 from paths import two_person_dir
 from synthetic import humanoid_bvh
 
@@ -115,7 +116,10 @@ def test_replay_starts_as_person_b_and_reports_both_alphas(tiny_model, tmp_path)
     take = load_pair(a, b, name="walkers", caption="two walkers")
     ego = replay(tiny_model, take, seed=0, alpha_hhi=1.0)
     assert ego.shape == take.b.joints.shape and np.isfinite(ego).all()
-    assert np.allclose(ego[0], take.b.joints[0])
+    k = start_frames(tiny_model, take)
+    assert k == tiny_model.cfg.history                           # B's first frames: the model's history
+    assert np.allclose(ego[:k], take.b.joints[:k])
+    assert not np.allclose(ego[k], take.b.joints[k])             # then the model's own frames
     report = evaluate_takes(tiny_model, [take], seeds=(0,))
     entry = report["takes"]["walkers"]
     assert set(entry) >= {"alpha1", "alpha0", "real"}

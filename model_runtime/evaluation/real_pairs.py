@@ -3,11 +3,12 @@
     python -m model_runtime.evaluate --two-person FOLDER [--seeds 0,1,2,3] [--json] [--plots DIR]
 
 For each take of the folder (model_runtime.data.two_person says which files make a take) and each seed, a
-ReactionSession starts from person B's first frame (pose, position, heading) with B's prompt, partner A is
+ReactionSession continues from person B's first frames (the model's history: two frames, so pose, position,
+heading and pace, so a B who is already walking is not made to set off from a stand) with B's prompt, partner A is
 replayed frame by frame, and the ego's path is set beside B's real one, with the interaction module on
 (alpha_HHI 1) and off (0); test-time control stays as shipped. Per take and on average over takes:
-    mean_distance_m       horizontal pelvis distance between the ego and real B, mean over the frames after
-                          the start
+    mean_distance_m       horizontal pelvis distance between the ego and real B, mean over the frames the
+                          model made
     final_distance_m      the same at the last frame
     min_clearance_m       smallest ego-joint to A-joint distance over the take (real B's under "real")
     travel_m              horizontal pelvis path length (real B's under "real")
@@ -37,10 +38,11 @@ def travel(joints: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(np.asarray(joints, np.float64)[:, 0, :2], axis=0), axis=-1).sum())
 
 
-def path_comparison(ego: np.ndarray, real: np.ndarray, partner: np.ndarray) -> dict:
-    """The ego's take against the real person's, both (T, 22, 3) world joints beside the same partner."""
+def path_comparison(ego: np.ndarray, real: np.ndarray, partner: np.ndarray, start: int = 1) -> dict:
+    """The ego's take against the real person's, both (T, 22, 3) world joints beside the same partner; the
+    mean distance counts the frames from `start` on (those before are the real frames the ego started from)."""
     d = np.linalg.norm(np.asarray(ego, np.float64)[:, 0, :2] - np.asarray(real, np.float64)[:, 0, :2], axis=-1)
-    after = d[1:] if len(d) > 1 else d
+    after = d[start:] if len(d) > start else d[-1:]
     return {"mean_distance_m": float(after.mean()), "final_distance_m": float(d[-1]),
             "min_clearance_m": min_clearance(ego, partner), "travel_m": travel(ego)}
 
@@ -51,16 +53,24 @@ def start_frame(motion, index: int = 0):
     return EgoFrame(0, motion.joints[index].copy(), motion.root[index].copy(), motion.local_rotations[index].copy())
 
 
+def start_frames(model, take) -> int:
+    """How many of person B's real frames a replay starts from: the model's history (fewer in a very short
+    take, which keeps at least one frame to make)."""
+    return max(1, min(model.cfg.history, take.frames - 1))
+
+
 def replay(model, take, *, seed: int, alpha_hhi: float, text: str | None = None,
            guidance: float = DEFAULT_GUIDANCE) -> np.ndarray:
-    """(T, 22, 3): the ego started as person B, stepped beside person A's replayed frames."""
+    """(T, 22, 3): the ego continuing from person B's first frames (start_frames), stepped beside person A's
+    replayed frames."""
     from ..session import ReactionSession
     s = ReactionSession(model, text=take.text if text is None else text, seed=seed,
                         alpha={"hhi": alpha_hhi, "hsi": 1.0}, guidance=guidance)
-    s.reset(frame=start_frame(take.b))
+    k = start_frames(model, take)
+    s.reset(frame=[start_frame(take.b, i) for i in range(k)])
     out = np.empty_like(take.b.joints)
-    out[0] = take.b.joints[0]
-    for i in range(1, take.frames):
+    out[:k] = take.b.joints[:k]
+    for i in range(k, take.frames):
         out[i] = s.step(partner=take.a.joints[i]).joints
     return out
 
@@ -87,7 +97,7 @@ def evaluate_takes(model, takes: Sequence, seeds: Sequence[int] = (0, 1, 2, 3), 
                     progress(f"{take.name}: alpha_HHI {alpha:g}, seed {seed}")
                 ego = replay(model, take, seed=seed, alpha_hhi=alpha, text=text, guidance=guidance)
                 runs.append(ego)
-                rows.append(path_comparison(ego, real, take.a.joints))
+                rows.append(path_comparison(ego, real, take.a.joints, start=start_frames(model, take)))
             entry[f"alpha{alpha:g}"] = _mean(rows)
             per_alpha[alpha].append(entry[f"alpha{alpha:g}"])
             report["tracks"][take.name][alpha] = runs
