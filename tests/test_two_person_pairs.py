@@ -71,9 +71,13 @@ def test_touching_people_stay_a_pair(tmp_path):
 
 def test_a_take_is_appended_once(take_folder):
     takes = load_pairs(take_folder)
-    out, _ = add_two_person_pairs(synthetic_library(), takes)
+    lib = synthetic_library()
+    out, _ = add_two_person_pairs(lib, takes)
     with pytest.raises(RemogenError, match="already holds .*cmu/19_02#twoperson0.*append each take once"):
         add_two_person_pairs(out, takes)
+    # two takes whose files share a name would share clip names, and a partner is found by its clip's name
+    with pytest.raises(RemogenError, match="name their clips alike .*its own name"):
+        add_two_person_pairs(lib, takes + takes)
 
 
 def test_command_line_appends_and_bad_input_changes_nothing(take_folder, tmp_path, capsys):

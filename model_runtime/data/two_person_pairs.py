@@ -59,8 +59,12 @@ def add_two_person_pairs(lib: ClipLibrary, takes: list[TwoPersonTake],
     """`lib` with both egos of every take and their partners appended; (library, indices of the egos). Refuses a
     take whose clips the library already holds."""
     clips = two_person_clips(takes, source)
+    names = [c.name for c in clips]
+    shared = sorted({n for n in names if names.count(n) > 1})
+    if shared:     # a clip is named after its file, and its partner is found by that name
+        raise RemogenError(f"two takes name their clips alike ({shared[0]}): give every person's file its own name")
     held = set(lib.names)
-    twice = sorted({c.name for c in clips if c.name in held})
+    twice = sorted({n for n in names if n in held})
     if twice:
         raise RemogenError(f"the library already holds {', '.join(twice[:3])}; append each take once "
                            "(start again from the library without them)")
