@@ -159,3 +159,25 @@ def write_npz(path, root_orient, frames=60, rate_key="mocap_frame_rate", width=1
     poses[:, :3] = root_orient
     np.savez(path, poses=poses, trans=np.zeros((frames, 3), np.float32), **{rate_key: np.array(60.0)}, **extra)
     return path
+
+
+def scaled_copy(src, dst, scale=1.0, shift_x=0.0):
+    """The same take for a second actor: a body `scale` times taller (bones and hip height) walking the same
+    path, moved sideways by shift_x file units."""
+    lines = src.read_text().splitlines()
+    out, motion = [], False
+    for line in lines:
+        tok = line.split()
+        if tok[:1] == ["OFFSET"]:
+            pad = line[:len(line) - len(line.lstrip())]
+            line = pad + "OFFSET " + " ".join(f"{float(v) * scale:.6f}" for v in tok[1:])
+        elif motion and len(tok) > 3:
+            root = [float(v) for v in tok[:3]]
+            root[0] += shift_x
+            root[1] *= scale                                              # Y up: the hips higher
+            line = " ".join([f"{v:.6f}" for v in root] + tok[3:])
+        elif tok[:2] == ["Frame", "Time:"]:
+            motion = True
+        out.append(line)
+    dst.write_text("\n".join(out) + "\n")
+    return dst

@@ -12,29 +12,7 @@ from model_runtime.errors import InputError
 from model_runtime.evaluation.real_pairs import (evaluate_takes, main as real_pairs_main, path_comparison, replay,
                                                 start_frames)
 from paths import two_person_dir
-from synthetic import humanoid_bvh
-
-
-def scaled_copy(src, dst, scale=1.0, shift_x=0.0):
-    """The same take for a second actor: a body `scale` times taller (bones and hip height) walking the same
-    path, moved sideways by shift_x file units."""
-    lines = src.read_text().splitlines()
-    out, motion = [], False
-    for line in lines:
-        tok = line.split()
-        if tok[:1] == ["OFFSET"]:
-            pad = line[:len(line) - len(line.lstrip())]
-            line = pad + "OFFSET " + " ".join(f"{float(v) * scale:.6f}" for v in tok[1:])
-        elif motion and len(tok) > 3:
-            root = [float(v) for v in tok[:3]]
-            root[0] += shift_x
-            root[1] *= scale                                              # Y up: the hips higher
-            line = " ".join([f"{v:.6f}" for v in root] + tok[3:])
-        elif tok[:2] == ["Frame", "Time:"]:
-            motion = True
-        out.append(line)
-    dst.write_text("\n".join(out) + "\n")
-    return dst
+from synthetic import humanoid_bvh, scaled_copy
 
 
 def test_actors_keep_their_placement_in_one_world_frame(tmp_path):

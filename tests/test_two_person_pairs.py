@@ -14,8 +14,7 @@ from model_runtime.data.two_person_pairs import add_two_person_pairs, main as pa
 from model_runtime.errors import RemogenError
 from model_runtime.training.recipe import TWO_PERSON_WEIGHT
 from model_runtime.training.samples import CLIP_KIND_WEIGHT
-from synthetic import humanoid_bvh, synthetic_library
-from test_two_person import scaled_copy
+from synthetic import humanoid_bvh, scaled_copy, synthetic_library
 
 
 @pytest.fixture
