@@ -80,3 +80,25 @@ def test_the_slowed_recipe_adds_slow_walks_to_the_prior_and_no_slow_set_offs(lib
     for recipe, stage in (("kicks", "prior"), ("kicks_slowed", "decoder")):
         other, _ = build_samplers(stage, model, lib, seed=0, rank=0, windows=WINDOW_RECIPES[recipe])
         assert "slowed" not in {derived_kind(n) for n in other.lib.names}
+
+
+def test_the_light_recipe_draws_the_slowed_copies_at_its_own_weight(lib):
+    from model_runtime.data.library import derived_kind
+    from model_runtime.training.recipe import SLOWED_WALK_WEIGHT_LIGHT, WINDOW_RECIPES
+    from model_runtime.training.setup import build_samplers
+    model = load_model(config="tiny")
+    full, _ = build_samplers("prior", model, lib, seed=0, rank=0, windows=WINDOW_RECIPES["kicks_slowed"])
+    light, _ = build_samplers("prior", model, lib, seed=0, rank=0, windows=WINDOW_RECIPES["kicks_slowed_light"])
+    assert full.lib.names == light.lib.names and len(full.items) == len(light.items)
+
+    def by_kind(sampler):
+        raw = sampler.weights.numpy() / np.array([sampler.lib.frames(i) - sampler.span for i, _ in sampler.items])
+        kinds = [derived_kind(sampler.lib.names[i]) for i, _ in sampler.items]
+        return {k: raw[[j for j, kk in enumerate(kinds) if kk == k]] for k in set(kinds)}
+
+    f, g = by_kind(full), by_kind(light)
+    # per segment start, a slowed copy against a real clip of the same caption weight: the recipe's weight
+    real = ""
+    ratio_full = f["slowed"] / f[real].max()
+    ratio_light = g["slowed"] / g[real].max()
+    assert ratio_light == pytest.approx(ratio_full * SLOWED_WALK_WEIGHT_LIGHT / SLOWED_WALK_WEIGHT)

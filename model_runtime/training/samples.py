@@ -143,8 +143,9 @@ class SegmentSampler:
                  still_share: float = STILL_SHARE, slow_walk_share: float = SLOW_WALK_SHARE,
                  caption_balance_power: float = 0.0,
                  head_shares: tuple[tuple[str, float], ...] = (), wider_phrasings: bool = False,
-                 setoff_share: float = 0.0) -> None:
+                 setoff_share: float = 0.0, kind_weights: dict[str, float] | None = None) -> None:
         self.lib, self.cfg, self.stats = lib, cfg, stats
+        kind_weight = {**CLIP_KIND_WEIGHT, **(kind_weights or {})}
         self.wider_phrasings = wider_phrasings
         self.still_share, self.slow_walk_share = still_share, slow_walk_share
         self.pairs, self.scenes = pairs, scenes
@@ -160,7 +161,7 @@ class SegmentSampler:
         if not self.items:
             raise ValueError(f"no clip is long enough for a {self.span}-frame segment")
         weights = np.array([lib.frames(i) - self.span for i, _ in self.items], np.float64)
-        weights *= np.array([CLIP_KIND_WEIGHT.get(derived_kind(lib.names[i]), 1.0) for i, _ in self.items])
+        weights *= np.array([kind_weight.get(derived_kind(lib.names[i]), 1.0) for i, _ in self.items])
         if scenes is not None:
             weights *= np.array([SCENE_KIND_WEIGHT.get(scenes[k].kind, 1.0) for _, k in self.items])
         else:

@@ -157,7 +157,8 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
                         head_shares=windows.head_shares if stage in windows.head_share_stages else (),
                         still_share=windows.still_share, slow_walk_share=windows.slow_walk_share,
                         wider_phrasings=windows.wider_phrasings,
-                        setoff_share=windows.setoff_share if stage == "hhi" else 0.0)
+                        setoff_share=windows.setoff_share if stage == "hhi" else 0.0,
+                        kind_weights={"slowed": windows.slowed_walk_weight})
     if pairs_va == [] or scenes_va == []:
         note(f"note: no held-out clip fits the {stage} stage's rules: it trains without a held-out loss")
         return tr, None
