@@ -606,6 +606,7 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
                       "step_aside_rule": "ahead", "face_arrivals": False, "walk_aside": False,
                       "head_shares": [], "head_share_stages": [], "decoder_shown_weight": 1.0,
                       "hhi_copy_stages": [], "wider_phrasings": False, "slowed_walk_stages": [],
+                      "slowed_walk_weight": 0.5,
                       "setoff_share": 0.0, "hhi_guidance": 0.0, "anchor": 0.0,
                       "hhi_rollout": 0.0, "rollout_seam": 1.0, "rollout_skate": 10.0, "rollout_glide": 100.0,
                       "rollout_arms": True}
