@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -60,7 +61,7 @@ def add_two_person_pairs(lib: ClipLibrary, takes: list[TwoPersonTake],
     take whose clips the library already holds."""
     clips = two_person_clips(takes, source)
     names = [c.name for c in clips]
-    shared = sorted({n for n in names if names.count(n) > 1})
+    shared = sorted(n for n, k in Counter(names).items() if k > 1)
     if shared:     # a clip is named after its file, and its partner is found by that name
         raise RemogenError(f"two takes name their clips alike ({shared[0]}): give every person's file its own name")
     held = set(lib.names)
