@@ -90,7 +90,7 @@ REVERSAL_WEIGHT = 0.5
 # 0.93 -> 0.60-0.81 m/s at 0.5 or 0.25; at 0.5 the run kind fell below 2 m/s in 4 of 7 snapshots. Every snapshot
 # alone lost a target the shipped prior meets (standing drift, walking yaw, the run kind or the learned approach);
 # averaged half and half with the prior it started from (training/average.py) it kept them on the 48-episode val
-# suite but let an approaching partner within 0.07 m over 144 (README, "Slow walks from slowed real walks").
+# suite but let an approaching partner within 0.07 m over 144 (docs/HISTORY.md, "Slow walks from slowed real walks").
 SLOWED_WALK_STAGES: tuple[str, ...] = ()
 SLOWED_WALK_WEIGHT = 0.5
 SLOWED_WALK_WEIGHT_LIGHT = 0.25   # the shipped prior's last fine-tune ("kicks_slowed_light")
@@ -101,8 +101,8 @@ TURN_ARRIVAL_STAGES: tuple[str, ...] = ()
 TURN_ARRIVAL_WEIGHT = 3.0   # how often their windows are drawn, against their frame count
 # Copies of the controlled runtime's own reactions (training/controlled_copies.py), in a library made by its command,
 # drawn this many times as often as their frame count says: 1,065 of them among 19,427 HHI pairs are 61 % of the
-# draws. Measured on val and not shipped: the module learned no better crossing without control from them (README,
-# "Learning the controlled reaction").
+# draws. Measured on val and not shipped: the module learned no better crossing without control from them
+# (docs/HISTORY.md, "Learning the controlled reaction").
 CONTROLLED_COPY_WEIGHT = 20.0
 # Real two-person captures (data/two_person_pairs.py), in a library made by its command: a few seconds a take against
 # hours of derived pairs, so their windows are drawn this many times as often as their frame count says (two takes,
@@ -115,7 +115,7 @@ TWO_PERSON_WEIGHT = 200.0
 # kinds: "" is a real clip) where the file it started from put it, as in "Learning without Forgetting" (Li and
 # Hoiem, 2016): the new copies' windows learn freely, the others are held to the old predictions.
 ANCHORED_KINDS = ("", "mirror")
-ANCHOR_WEIGHT = 2.0   # against the stage's own loss; measured from 1 to 8 (README, "Anchored fine-tunes")
+ANCHOR_WEIGHT = 2.0   # against the stage's own loss; measured from 1 to 8 (docs/HISTORY.md, "Anchored fine-tunes")
 
 
 # The decoder stage. The VAE's reconstruction loss weighs all 276 feature channels alike, and the motion shown (the
@@ -220,7 +220,7 @@ WINDOW_RECIPES = {
                              reversal_stages=("prior",)),
     # the captured windows, and turn-then-walk arrivals for the HSI stage
     "turns": WindowRecipe(turn_arrival_stages=("hsi",)),
-    # HHI recipes tried for the learned crossing and not shipped (README, "Getting out of a walker's way"):
+    # HHI recipes tried for the learned crossing and not shipped (docs/HISTORY.md, "Getting out of a walker's way"):
     # step-aside copies with a partner from any direction, the step timed by when the partner would arrive and the
     # clip's own caption (data/avoidance.py YIELD_RULE: away from the partner's line; KEEP_RIGHT_RULE: always to
     # its right), beside copies where a partner walks up and stops and the ego makes room, then faces it
@@ -238,7 +238,7 @@ WINDOW_RECIPES = {
                           decoder_shown_weight=0.0),
     # the kicks windows, for the prior also reversed forward walks (data/reversals.py) with their start-ups, and
     # slow and backward walks phrased more ways. Measured on val and not shipped: 6 of the 7 text kinds, but the
-    # standing prompts drift and the standing seams pop (README, "Two more tries")
+    # standing prompts drift and the standing seams pop (docs/HISTORY.md, "Two more tries")
     "kicks_reversed": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5,
                                    startup_stages=("prior",), reversal_stages=("prior",),
                                    head_share_stages=("prior", "decoder"), head_shares=KICK_HEAD_SHARES,
@@ -246,18 +246,18 @@ WINDOW_RECIPES = {
     # the kicks windows, and the decoder stage also on the HHI copies (stepping aside, avoiding, arriving,
     # following): a decoder that renders the sidestep the HHI module asks for. Measured on val and not shipped: the
     # learned crossing gains (56 -> 71-73 % without control at 500-1,000 steps), and each snapshot loses a met target:
-    # standing drift and an alpha-0 seam, or with a firmer seam the stand text kind (README, "Two more tries")
+    # standing drift and an alpha-0 seam, or with a firmer seam the stand text kind (docs/HISTORY.md, "Two more tries")
     "kicks_hhi": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",),
                               head_share_stages=("prior", "decoder"), head_shares=KICK_HEAD_SHARES,
                               decoder_shown_weight=0.0, hhi_copy_stages=("decoder",)),
     # the HHI stage with half of each pair's draws, where it has any, from its set-off windows (a still history, a
     # moving future): what a standing ego must learn is when to start moving, and few windows show it. Meant for a
-    # library with the controlled copies (training/controlled_copies.py). Measured on val and not shipped (README,
-    # "Learning the controlled reaction")
+    # library with the controlled copies (training/controlled_copies.py). Measured on val and not shipped
+    # (docs/HISTORY.md, "Learning the controlled reaction")
     "setoffs": WindowRecipe(setoff_share=0.5),
     # the same, and the HHI loss taken on the prediction as the runtime guides it (text guidance 6, both passes with the
     # module): guidance undoes part of what the module learns one conditional step at a time. Measured on val and not
-    # shipped: the learned approach gains, the approach's seams on the first val episodes do not hold (README,
+    # shipped: the learned approach gains, the approach's seams on the first val episodes do not hold (docs/HISTORY.md,
     # "Learning the controlled reaction")
     "setoffs_guided": WindowRecipe(setoff_share=0.5, hhi_guidance=6.0),
     # the same, and a loss on what the module makes, not on one denoising step: ROLLOUT_ROWS windows a batch are
@@ -270,7 +270,7 @@ WINDOW_RECIPES = {
     # module on the segments it samples")
     "setoffs_rollout": WindowRecipe(setoff_share=0.5, hhi_guidance=6.0, hhi_rollout=ROLLOUT_WEIGHT),
     # the run whose 250-step snapshot, averaged 0.4 with the shipped module, meets the learned crossing on val with
-    # the feet sliding more while the ego dodges (README, "Training the HHI module on the segments it samples")
+    # the feet sliding more while the ego dodges (docs/HISTORY.md, "Training the HHI module on the segments it samples")
     "setoffs_rollout_anchored": ROLLOUT_ANCHORED,
     # the same with the ego's forearms free to come near a partner (a rollout-trained module damped the waving arms of
     # an ego beside a standing partner). Measured on val and not shipped: the same learned crossing and sliding, the
@@ -286,8 +286,8 @@ WINDOW_RECIPES = {
     "kicks_slowed_light": replace(KICKS_SLOWED, slowed_walk_weight=SLOWED_WALK_WEIGHT_LIGHT),
     # the kicks windows, for the prior slowed and reversed forward walks phrased more ways, and the prior held to its
     # starting output on the real clips' windows (ANCHORED_KINDS). Measured on val and not shipped: walking stays
-    # straight and the literal backwards prompt walks backwards, but standing drifts and the run kind slows (README,
-    # "Anchored fine-tunes")
+    # straight and the literal backwards prompt walks backwards, but standing drifts and the run kind slows
+    # (docs/HISTORY.md, "Anchored fine-tunes")
     "slow_back_anchored": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5,
                                        startup_stages=("prior",), reversal_stages=("prior",),
                                        slowed_walk_stages=("prior",), head_share_stages=("prior", "decoder"),
@@ -295,7 +295,7 @@ WINDOW_RECIPES = {
                                        anchor=ANCHOR_WEIGHT),
     # the kicks_hhi decoder stage held to the starting decoder on the real clips' windows: the decoder learns to
     # render the HHI copies' sidesteps and keeps the standing prompts still. Measured on val and not shipped: the
-    # learned crossing 56 -> 66-68 %, walking toes slide more (README, "Anchored fine-tunes")
+    # learned crossing 56 -> 66-68 %, walking toes slide more (docs/HISTORY.md, "Anchored fine-tunes")
     "hhi_anchored": WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",),
                                  head_share_stages=("prior", "decoder"), head_shares=KICK_HEAD_SHARES,
                                  decoder_shown_weight=0.0, hhi_copy_stages=("decoder",), anchor=ANCHOR_WEIGHT),

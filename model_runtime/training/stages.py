@@ -242,7 +242,7 @@ class StageLoss(nn.Module):
         walk's (measured: without them the module learned to slide, then to glide out of the way); "kept" (with an
         anchor) how far the segments moved from those the starting module samples from the same noise. The
         denoising loss scores one step from a real future, and what it fits there did not come out of the sampled
-        steps from a still history (README, "Learning the controlled reaction")."""
+        steps from a still history (docs/HISTORY.md, "Learning the controlled reaction")."""
         rows = slice(0, min(ROLLOUT_ROWS, b.hist.shape[0]))   # the batch's order is random
         drawn_from = gen.get_state()
         ego = rollout_joints(self.model, b, rows, gen)
