@@ -10,7 +10,7 @@ import pytest
 from model_runtime.data.two_person import load_pair, load_pairs, pair_files
 from model_runtime.errors import InputError
 from model_runtime.evaluation.real_pairs import (evaluate_takes, main as real_pairs_main, path_comparison, replay,
-                                                start_frames)
+                                                start_frame, start_frames)
 from paths import two_person_dir
 from synthetic import humanoid_bvh, scaled_copy
 
@@ -106,6 +106,20 @@ def test_replay_starts_as_person_b_and_reports_both_alphas(tiny_model, tmp_path)
     assert report["overall"]["alpha1"] == entry["alpha1"]
 
 
+def test_replay_without_control_is_a_session_without_control(tiny_model, tmp_path):
+    from model_runtime.session import ReactionSession
+    a, _ = humanoid_bvh(tmp_path / "a.bvh", fps=120, seconds=1.0, unit=0.01)
+    b = scaled_copy(a, tmp_path / "b.bvh", shift_x=60.0)                 # close enough for the partner cost
+    take = load_pair(a, b, name="walkers", caption="two walkers")
+    k = start_frames(tiny_model, take)
+    s = ReactionSession(tiny_model, text=take.text, seed=3, alpha={"hhi": 1.0, "hsi": 1.0}, control=False)
+    s.reset(frame=[start_frame(take.b, i) for i in range(k)])
+    expected = [s.step(partner=take.a.joints[i]).joints for i in range(k, take.frames)]
+    off = replay(tiny_model, take, seed=3, alpha_hhi=1.0, control=False)
+    assert np.allclose(off[k:], np.stack(expected))
+    assert not np.allclose(off[k:], replay(tiny_model, take, seed=3, alpha_hhi=1.0)[k:])   # control on differs
+
+
 def test_command_line_writes_json_and_one_plot_per_take(tmp_path, capsys, monkeypatch):
     import json
 
@@ -119,7 +133,9 @@ def test_command_line_writes_json_and_one_plot_per_take(tmp_path, capsys, monkey
     (folder / "pairs.csv").write_text("a,b,caption\na.bvh,b.bvh,two walkers\n")
     assert real_pairs_main(["--two-person", str(folder), "--seeds", "0", "--json", "--plots", str(tmp_path / "p")]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert set(out["takes"]) == {"a+b"} and (tmp_path / "p" / "a+b.png").is_file()
+    assert set(out["takes"]) == {"a+b"} and (tmp_path / "p" / "a+b.png").is_file() and out["control"] is True
+    assert real_pairs_main(["--two-person", str(folder), "--seeds", "0", "--json", "--no-control"]) == 0
+    assert json.loads(capsys.readouterr().out)["control"] is False
     assert real_pairs_main(["--two-person", str(tmp_path / "missing")]) == 2
     assert "not found" in capsys.readouterr().err
 

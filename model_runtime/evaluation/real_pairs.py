@@ -6,7 +6,8 @@ For each take of the folder (model_runtime.data.two_person says which files make
 ReactionSession continues from person B's first frames (the model's history: two frames, so pose, position,
 heading and pace, so a B who is already walking is not made to set off from a stand) with B's prompt, partner A is
 replayed frame by frame, and the ego's path is set beside B's real one, with the interaction module on
-(alpha_HHI 1) and off (0); test-time control stays as shipped. Per take and on average over takes:
+(alpha_HHI 1) and off (0); test-time control stays as shipped (`--no-control`: off, to see what the modules
+learned by themselves). Per take and on average over takes:
     mean_distance_m       horizontal pelvis distance between the ego and real B, mean over the frames the
                           model made
     final_distance_m      the same at the last frame
@@ -60,12 +61,12 @@ def start_frames(model, take) -> int:
 
 
 def replay(model, take, *, seed: int, alpha_hhi: float, text: str | None = None,
-           guidance: float = DEFAULT_GUIDANCE) -> np.ndarray:
+           guidance: float = DEFAULT_GUIDANCE, control: bool = True) -> np.ndarray:
     """(T, 22, 3): the ego continuing from person B's first frames (start_frames), stepped beside person A's
-    replayed frames."""
+    replayed frames; `control` False turns test-time control off."""
     from ..session import ReactionSession
     s = ReactionSession(model, text=take.text if text is None else text, seed=seed,
-                        alpha={"hhi": alpha_hhi, "hsi": 1.0}, guidance=guidance)
+                        alpha={"hhi": alpha_hhi, "hsi": 1.0}, guidance=guidance, control=control)
     k = start_frames(model, take)
     s.reset(frame=[start_frame(take.b, i) for i in range(k)])
     out = np.empty_like(take.b.joints)
@@ -80,7 +81,8 @@ def _mean(rows: list[dict]) -> dict:
 
 
 def evaluate_takes(model, takes: Sequence, seeds: Sequence[int] = (0, 1, 2, 3), *, text: str | None = None,
-                   guidance: float = DEFAULT_GUIDANCE, progress: Callable[[str], None] | None = None) -> dict:
+                   guidance: float = DEFAULT_GUIDANCE, control: bool = True,
+                   progress: Callable[[str], None] | None = None) -> dict:
     """{"takes": {name: {...}}, "overall": {alpha: means}, "tracks": {name: {alpha: [ego joints per seed]}}}."""
     report: dict = {"takes": {}, "overall": {}, "tracks": {}}
     per_alpha: dict[float, list[dict]] = {a: [] for a in ALPHAS}
@@ -95,7 +97,7 @@ def evaluate_takes(model, takes: Sequence, seeds: Sequence[int] = (0, 1, 2, 3), 
             for seed in seeds:
                 if progress:
                     progress(f"{take.name}: alpha_HHI {alpha:g}, seed {seed}")
-                ego = replay(model, take, seed=seed, alpha_hhi=alpha, text=text, guidance=guidance)
+                ego = replay(model, take, seed=seed, alpha_hhi=alpha, text=text, guidance=guidance, control=control)
                 runs.append(ego)
                 rows.append(path_comparison(ego, real, take.a.joints, start=start_frames(model, take)))
             entry[f"alpha{alpha:g}"] = _mean(rows)
@@ -152,6 +154,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", default="0,1,2,3", help="comma-separated seeds per take and alpha")
     ap.add_argument("--text", default=None, help="prompt for the ego in every take (default: each take's own)")
     ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE, help="classifier-free guidance scale")
+    ap.add_argument("--no-control", action="store_true",
+                    help="test-time control off: what the interaction module does by itself")
     ap.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     ap.add_argument("--json", action="store_true", help="print the report as one JSON object")
     ap.add_argument("--plots", default=None, help="folder for one top-view PNG per take")
@@ -172,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
         takes = load_pairs(args.two_person)
         model = load_model(args.model)
         report = evaluate_takes(model, takes, seeds, text=args.text, guidance=args.guidance,
-                                progress=lambda m: print(m, file=sys.stderr, flush=True))
+                                control=not args.no_control, progress=lambda m: print(m, file=sys.stderr, flush=True))
     except RemogenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -182,6 +186,7 @@ def main(argv: list[str] | None = None) -> int:
             written.append(str(plot_take(take, report["tracks"][take.name], Path(args.plots) / f"{take.name}.png",
                                          seeds)))
     out = {"model": model.meta.get("path", args.model or "default"), "folder": str(args.two_person),
-           "seeds": seeds, "takes": report["takes"], "overall": report["overall"], "plots": written}
+           "seeds": seeds, "control": not args.no_control, "takes": report["takes"], "overall": report["overall"],
+           "plots": written}
     print(json.dumps(_jsonable(out)) if args.json else json.dumps(_jsonable(out), indent=2))
     return 0
