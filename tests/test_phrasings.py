@@ -101,3 +101,32 @@ def test_a_recipe_with_wider_phrasings_trains_on_them():
                                wider_phrasings=True).sample(256).text)
     assert texts <= set(caption_phrasings("a person walks backwards", True))
     assert texts - set(caption_phrasings("a person walks backwards"))
+
+
+def test_path_tails_go_onto_plain_locomotion_only_when_asked():
+    from model_runtime.data.phrasings import PATH_TAILS, takes_path_tail, with_path_tail
+    assert takes_path_tail("a person runs forward, happily") and takes_path_tail("a person walks backwards")
+    assert not takes_path_tail("a person walks and turns left") and not takes_path_tail("a person walks to the left")
+    assert not takes_path_tail("a person punches")
+    assert with_path_tail("someone runs forward, cheerfully", "down the hall") == \
+        "someone runs forward down the hall, cheerfully"                     # the style stays last
+    assert with_path_tail("a happy man is running forward", "down the hall") == \
+        "a happy man is running forward down the hall"
+    # without tails the draws are exactly as before: no extra draw from the generator
+    gen_a, gen_b = torch.Generator().manual_seed(5), torch.Generator().manual_seed(5)
+    assert [pick_phrasing("a person runs forward", gen_a) for _ in range(20)] == \
+        [pick_phrasing("a person runs forward", gen_b, path_tail_share=0.0) for _ in range(20)]
+    gen = torch.Generator().manual_seed(0)
+    drawn = [pick_phrasing("a person runs forward, tired", gen, path_tail_share=0.3) for _ in range(400)]
+    tailed = [d for d in drawn if any(t in d for t in PATH_TAILS)]
+    assert 0.2 < len(tailed) / len(drawn) < 0.4
+    assert all(d.endswith(("tired", "tiredly", "wearily")) for d in tailed if ", " in d)   # the style stays last
+    gen = torch.Generator().manual_seed(0)
+    assert not any(any(t in pick_phrasing("a person punches", gen, path_tail_share=1.0) for t in PATH_TAILS)
+                   for _ in range(50))
+
+
+def test_no_path_tail_holds_a_held_out_prompt_word():
+    from model_runtime.data.phrasings import PATH_TAILS
+    held_out_words = {w for p in HELD_OUT_PROMPTS for w in normalised_words(p).split()} - {"the", "to"}
+    assert not held_out_words & {w for t in PATH_TAILS for w in normalised_words(t).split()}

@@ -594,6 +594,11 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
     assert "startup" in {derived_kind(n) for n in tr.lib.names}
     plain = build_samplers("prior", model, sets_off, seed=0, rank=0, windows=captured)[0]
     assert "startup" not in {derived_kind(n) for n in plain.lib.names}
+    assert (plain.path_tail_share, tr.path_tail_share) == (0.0, 0.0)
+    tails = WINDOW_RECIPES["kicks_slowed_light_tails"]
+    tailed, tailed_va = build_samplers("prior", model, sets_off, seed=0, rank=0, windows=tails)
+    assert tailed.path_tail_share == tails.path_tail_share > 0.0
+    assert tailed_va is None or tailed_va.path_tail_share == 0.0
     assert (plain.still_share, plain.slow_walk_share) == (captured.still_share, captured.slow_walk_share)
 
     out = tmp_path / "run"
@@ -605,7 +610,7 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
                       "startup_stages": ["prior"], "reversal_stages": [], "turn_arrival_stages": [],
                       "step_aside_rule": "ahead", "face_arrivals": False, "walk_aside": False,
                       "head_shares": [], "head_share_stages": [], "decoder_shown_weight": 1.0,
-                      "hhi_copy_stages": [], "wider_phrasings": False, "slowed_walk_stages": [],
+                      "hhi_copy_stages": [], "wider_phrasings": False, "path_tail_share": 0.0, "slowed_walk_stages": [],
                       "slowed_walk_weight": 0.5,
                       "setoff_share": 0.0, "hhi_guidance": 0.0, "anchor": 0.0,
                       "hhi_rollout": 0.0, "rollout_seam": 1.0, "rollout_skate": 10.0, "rollout_glide": 100.0,

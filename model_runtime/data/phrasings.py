@@ -41,6 +41,16 @@ WIDER_VERB_SYNONYMS = {
     "walks slowly": ("moves slowly", "takes slow steps", "walks at an easy pace"),
     "walks backwards": ("walks backward", "moves backwards", "steps backwards", "steps back", "walks in reverse"),
 }
+# Where a walk or run goes, in words that change nothing of its motion, drawn onto a share of the plain locomotion
+# windows by a recipe that asks for them (WindowRecipe.path_tail_share): no caption names a destination, so a prompt
+# that adds one ("... down the hall") lands away from every caption of its own motion and the prior makes some other
+# kind of it (told "runs across the room" it ran 1.8 m/s, "runs" alone 2.5). None holds a HELD_OUT_PROMPTS word
+# other than "the" and "to" (a test checks it).
+PATH_TAILS = ("to the other side", "down the hall", "toward the door", "over to the wall", "down the street",
+              "through the hallway", "from one end to the other", "down the corridor")
+# The caption predicates (style removed) of plain locomotion with no direction of its own, which take a path tail.
+PATH_PREDICATES = frozenset(("walks", "walks forward", "walks briskly", "walks slowly", "walks backwards", "runs",
+                             "runs forward", "jogs", "dashes forward"))
 # Bandai styles (the tail after ", ") -> other ways of saying it; and as an adjective of the subject.
 STYLE_SYNONYMS = {
     "happily": ("cheerfully", "in a happy mood"), "sadly": ("sorrowfully", "in a sad mood"),
@@ -176,10 +186,33 @@ def caption_phrasings(caption: str, wider: bool = False) -> tuple[str, ...]:
     return tuple(dict.fromkeys(out))
 
 
-def pick_phrasing(caption: str, gen: torch.Generator, wider: bool = False) -> str:
-    """One of the caption's phrasings, uniformly (drawn from `gen`, so a seeded sampler repeats)."""
+def takes_path_tail(caption: str) -> bool:
+    """Whether a caption is plain locomotion without a direction of its own (PATH_PREDICATES)."""
+    base, _ = _split_style(caption.strip())
+    return base.startswith("a person ") and base[len("a person "):] in PATH_PREDICATES
+
+
+_STYLE_WORDS = frozenset(STYLE_SYNONYMS) | {w for subs in STYLE_SYNONYMS.values() for w in subs}
+
+
+def with_path_tail(phrasing: str, tail: str) -> str:
+    """'someone runs forward, happily' + 'down the hall' -> 'someone runs forward down the hall, happily'."""
+    head, sep, style = phrasing.rpartition(", ")
+    if sep and style in _STYLE_WORDS:
+        return f"{head} {tail}, {style}"
+    return f"{phrasing} {tail}"
+
+
+def pick_phrasing(caption: str, gen: torch.Generator, wider: bool = False, path_tail_share: float = 0.0) -> str:
+    """One of the caption's phrasings, uniformly (drawn from `gen`, so a seeded sampler repeats); for a plain
+    locomotion caption, with one of PATH_TAILS a `path_tail_share` of the time (no extra draw at 0, so recipes
+    without tails draw exactly as before)."""
     options = caption_phrasings(caption, wider)
-    return options[int(torch.randint(0, len(options), (1,), generator=gen))] if len(options) > 1 else options[0]
+    out = options[int(torch.randint(0, len(options), (1,), generator=gen))] if len(options) > 1 else options[0]
+    if path_tail_share > 0.0 and takes_path_tail(caption) and \
+            float(torch.rand((), generator=gen)) < path_tail_share:
+        out = with_path_tail(out, PATH_TAILS[int(torch.randint(0, len(PATH_TAILS), (1,), generator=gen))])
+    return out
 
 
 def normalised_words(text: str) -> str:

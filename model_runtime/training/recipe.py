@@ -94,6 +94,9 @@ REVERSAL_WEIGHT = 0.5
 SLOWED_WALK_STAGES: tuple[str, ...] = ()
 SLOWED_WALK_WEIGHT = 0.5
 SLOWED_WALK_WEIGHT_LIGHT = 0.25   # the shipped prior's last fine-tune ("kicks_slowed_light")
+# How often a plain walk or run window is captioned with where it goes ("... down the hall"; data/phrasings.py
+# PATH_TAILS), when a recipe asks for it: a third, so most windows keep their caption as it is.
+PATH_TAIL_SHARE = 0.3
 # The stages that also train on turn-then-walk arrivals (data/turn_arrivals.py: standing, turning on the spot toward
 # a goal 45-180 deg off facing, walking there and stopping): every other HSI copy starts out walking toward a goal
 # ahead, and without these the HSI module (control off, val) reached 2 of 24 goals more than 100 deg off facing.
@@ -179,6 +182,7 @@ class WindowRecipe:
     decoder_shown_weight: float = DECODER_SHOWN_WEIGHT   # the decoder stage's weight of the motion as shown
     hhi_copy_stages: tuple[str, ...] = ()  # other stages than HHI and FWSR that see the HHI copies too (hhi_copies.py)
     wider_phrasings: bool = False   # training captions also drawn in data/phrasings.py's WIDER_VERB_SYNONYMS
+    path_tail_share: float = 0.0    # share of plain locomotion windows captioned with a destination (PATH_TAILS)
     setoff_share: float = 0.0       # HHI stage: share of a pair's draws from its set-off windows (samples.py SETOFF_*)
     hhi_guidance: float = 0.0       # HHI stage: the loss taken on the prediction guided at this scale (0: conditional)
     slowed_walk_stages: tuple[str, ...] = SLOWED_WALK_STAGES  # the stages that also see slowed forward walks
@@ -284,6 +288,10 @@ WINDOW_RECIPES = {
     # and half with the prior it started from, slow the "walks slowly" prompts without losing the learned crossing
     # (README, "The model as it stands (2026-12-02)")
     "kicks_slowed_light": replace(KICKS_SLOWED, slowed_walk_weight=SLOWED_WALK_WEIGHT_LIGHT),
+    # the same with a destination drawn onto PATH_TAIL_SHARE of the plain walks and runs (data/phrasings.py
+    # PATH_TAILS): a prompt that says where the ego goes keeps the motion its verb names
+    "kicks_slowed_light_tails": replace(KICKS_SLOWED, slowed_walk_weight=SLOWED_WALK_WEIGHT_LIGHT,
+                                        path_tail_share=PATH_TAIL_SHARE),
     # the kicks windows, for the prior slowed and reversed forward walks phrased more ways, and the prior held to its
     # starting output on the real clips' windows (ANCHORED_KINDS). Measured on val and not shipped: walking stays
     # straight and the literal backwards prompt walks backwards, but standing drifts and the run kind slows

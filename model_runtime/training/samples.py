@@ -143,10 +143,11 @@ class SegmentSampler:
                  still_share: float = STILL_SHARE, slow_walk_share: float = SLOW_WALK_SHARE,
                  caption_balance_power: float = 0.0,
                  head_shares: tuple[tuple[str, float], ...] = (), wider_phrasings: bool = False,
-                 setoff_share: float = 0.0, kind_weights: dict[str, float] | None = None) -> None:
+                 setoff_share: float = 0.0, kind_weights: dict[str, float] | None = None,
+                 path_tail_share: float = 0.0) -> None:
         self.lib, self.cfg, self.stats = lib, cfg, stats
         kind_weight = {**CLIP_KIND_WEIGHT, **(kind_weights or {})}
-        self.wider_phrasings = wider_phrasings
+        self.wider_phrasings, self.path_tail_share = wider_phrasings, path_tail_share
         self.still_share, self.slow_walk_share = still_share, slow_walk_share
         self.pairs, self.scenes = pairs, scenes
         self.span = cfg.history + cfg.future
@@ -264,7 +265,8 @@ class SegmentSampler:
             seg = self.stats.normalize(seg)
             hist.append(seg[:h])
             fut.append(seg[h:])
-            texts.append(pick_phrasing(self._caption(feats[s:s + self.span], clip), self.gen, self.wider_phrasings))
+            texts.append(pick_phrasing(self._caption(feats[s:s + self.span], clip), self.gen, self.wider_phrasings,
+                                       self.path_tail_share))
             if self.pairs is not None:
                 lag = int(torch.randint(0, f + 1, (1,), generator=self.gen))
                 end = s + h - 1 - lag  # last partner frame seen by the diffusion

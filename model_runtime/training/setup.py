@@ -158,7 +158,7 @@ def build_samplers(stage: str, model: ReMoGenModel, lib: ClipLibrary, seed: int,
                         still_share=windows.still_share, slow_walk_share=windows.slow_walk_share,
                         wider_phrasings=windows.wider_phrasings,
                         setoff_share=windows.setoff_share if stage == "hhi" else 0.0,
-                        kind_weights={"slowed": windows.slowed_walk_weight})
+                        kind_weights={"slowed": windows.slowed_walk_weight}, path_tail_share=windows.path_tail_share)
     if pairs_va == [] or scenes_va == []:
         note(f"note: no held-out clip fits the {stage} stage's rules: it trains without a held-out loss")
         return tr, None
