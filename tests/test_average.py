@@ -57,6 +57,13 @@ def test_the_command_writes_the_average_and_records_its_sources(tmp_path, capsys
     assert all(torch.allclose(v, ref[k] + 0.5, atol=1e-6) for k, v in avg.denoiser.state_dict().items())
     record = avg.meta["stages"]["prior"]["averaged_from"]
     assert [(r["file"], r["weight"]) for r in record] == [("a.pt", 0.5), ("b.pt", 0.5)]
+    assert "averaged_from" not in record[0]
+    # an average of an average keeps the first one's record inside its source's
+    again = tmp_path / "again.pt"
+    assert main([str(out), f"{tmp_path / 'b.pt'}:3", "--out", str(again)]) == 0
+    chained = load_model(again, warn_untrained=False).meta["stages"]["prior"]["averaged_from"]
+    assert [(r["file"], r["weight"]) for r in chained] == [("avg.pt", 0.25), ("b.pt", 0.75)]
+    assert chained[0]["averaged_from"] == record and "averaged_from" not in chained[1]
     # a bad weight: one line, nothing written
     bad = tmp_path / "bad.pt"
     assert main([str(tmp_path / "a.pt"), f"{tmp_path / 'b.pt'}:-1", "--out", str(bad)]) == 2

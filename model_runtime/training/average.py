@@ -94,11 +94,16 @@ def remeasure_derived(model: ReMoGenModel, stage: str, library: str | Path | Non
 
 
 def _source_record(path: str, weight: float, model: ReMoGenModel, stage: str = "prior") -> dict:
-    """What the averaged file records of one source: its name, weight and the stage's training (steps, windows)."""
+    """What the averaged file records of one source: its name, weight and the stage's training (steps, windows),
+    and, for a source that was itself an average, what it was averaged from (so a chain of averages stays on
+    record)."""
     trained = model.meta.get("stages", {}).get(stage, {})
     windows = trained.get("windows")
-    return {"file": Path(path).name, "weight": round(weight, 6), "steps": trained.get("steps"),
-            "windows": windows.get("name") if isinstance(windows, dict) else windows}
+    record = {"file": Path(path).name, "weight": round(weight, 6), "steps": trained.get("steps"),
+              "windows": windows.get("name") if isinstance(windows, dict) else windows}
+    if trained.get("averaged_from"):
+        record["averaged_from"] = trained["averaged_from"]
+    return record
 
 
 def main(argv: list[str] | None = None) -> int:
