@@ -31,3 +31,14 @@ def set_final_guidance(model: Any, args: argparse.Namespace) -> dict[str, float]
     model.final_guidance_min_speed = args.final_guidance_min_speed
     return {"final_guidance_share": model.final_guidance_share,
             "final_guidance_min_speed": model.final_guidance_min_speed}
+
+
+def seeds_option(ap: argparse.ArgumentParser, value: str) -> list[int]:
+    """A --seeds value ("0,1,2") as integers; a malformed or empty list exits through `ap.error` with one line."""
+    try:
+        seeds = [int(x) for x in value.split(",") if x.strip()]
+    except ValueError:
+        seeds = []
+    if not seeds:
+        ap.error(f"--seeds must be comma-separated integers, got {value!r}")
+    return seeds

@@ -16,6 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..cli_help import HelpFormatter, seeds_option
 from ..errors import DEFAULT_GUIDANCE
 from .metrics import text_measures
 from .scenarios import TEXT_EPISODE_FRAMES, Episode
@@ -46,7 +47,7 @@ def markdown(report: dict[str, dict]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m model_runtime.behaviour.prompts",
-                                 description=__doc__.split("\n\n")[0])
+                                 description=__doc__.split("\n\n")[0], formatter_class=HelpFormatter)
     ap.add_argument("prompts", nargs="+", help="the prompts to roll out")
     ap.add_argument("--seeds", default="0,1,2", help="comma-separated seeds per prompt")
     ap.add_argument("--frames", type=int, default=TEXT_EPISODE_FRAMES, help="model frames a rollout (10 a second)")
@@ -55,12 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     ap.add_argument("--json", action="store_true", help="print one JSON object instead of a markdown table")
     args = ap.parse_args(argv)
-    try:
-        seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
-        if not seeds:
-            raise ValueError
-    except ValueError:
-        ap.error(f"--seeds must be comma-separated integers, got {args.seeds!r}")
+    seeds = seeds_option(ap, args.seeds)
     if args.frames < 2:
         ap.error(f"--frames must be at least 2, got {args.frames}")
     if not all(p.strip() for p in args.prompts):

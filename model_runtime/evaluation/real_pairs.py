@@ -26,7 +26,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import DEFAULT_GUIDANCE
-from ..cli_help import HelpFormatter
+from ..cli_help import HelpFormatter, seeds_option
 from ..data.pairs.placement import min_clearance
 from .plots import _pyplot, save_figure
 
@@ -160,12 +160,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true", help="print the report as one JSON object")
     ap.add_argument("--plots", default=None, help="folder for one top-view PNG per take")
     args = ap.parse_args(argv)
-    try:
-        seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
-        if not seeds:
-            raise ValueError
-    except ValueError:
-        ap.error(f"--seeds must be comma-separated integers, got {args.seeds!r}")
+    seeds = seeds_option(ap, args.seeds)
     import torch
 
     from ..checkpoint import load_model
