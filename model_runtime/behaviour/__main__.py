@@ -85,6 +85,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--library", default=None,
                     help="clip library .npz (e.g. runs/clips_full.npz): real-clip references for the text "
                          "family's kinds and the diversity measure; without it they are reported as absent")
+    ap.add_argument("--prompt-blend", type=float, default=None, metavar="KEEP",
+                    help="read each prompt as KEEP of its own vector and the rest its nearest training phrasing's "
+                         "(model_runtime/text_blend.py; needs --library, whose captions are the phrasings' source). "
+                         "An evaluation option, not the runtime's default")
     ap.add_argument("--diversity", action="store_true",
                     help=f"also measure takes that differ: the {len(DIVERSITY_PROMPTS)} diversity prompts "
                          "rolled out with --diversity-seeds seeds each (100 frames a take), pose distance "
@@ -117,6 +121,12 @@ def main(argv: list[str] | None = None) -> int:
         if args.library:
             from ..data.library import ClipLibrary
             library = ClipLibrary.load(args.library)
+        if args.prompt_blend is not None:
+            if library is None:
+                ap.error("--prompt-blend needs --library: its captions give the phrasings to blend toward")
+            from ..text_blend import PhrasingBlend, training_phrasings
+            model.text_encoder = PhrasingBlend(model.text_encoder, training_phrasings(list(library.captions)),
+                                               keep=args.prompt_blend)
     except RemogenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -129,6 +139,8 @@ def main(argv: list[str] | None = None) -> int:
                        **({"alphas": tuple(alphas)} if alphas else {}), control_config=control_config, **switches)
     report.update(switches)
     report.update(final_guidance)
+    if args.prompt_blend is not None:
+        report["prompt_blend"] = args.prompt_blend
     if args.control_set:
         report["control_config"] = dict(kv.split("=", 1) for kv in args.control_set)
     if args.prior_only:

@@ -133,7 +133,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
     loss_mod = StageLoss(model, stage, shown_weight=recipe.decoder_shown_weight, hhi_guidance=recipe.hhi_guidance,
                          anchor=start, anchor_weight=anchor_weight, hhi_rollout=recipe.hhi_rollout,
                          rollout_costs=(recipe.rollout_seam, recipe.rollout_skate, recipe.rollout_glide),
-                         rollout_arms=recipe.rollout_arms)
+                         rollout_arms=recipe.rollout_arms, text_jitter_cos=recipe.text_jitter_cos)
     ddp = (torch.nn.parallel.DistributedDataParallel(loss_mod, device_ids=[device] if device.type == "cuda" else None)
            if world > 1 else loss_mod)
     opt = torch.optim.AdamW(params, lr=lr, weight_decay=0.01)

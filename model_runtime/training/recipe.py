@@ -21,6 +21,10 @@ DEFAULT_STEPS = {k: v[0] for k, v in RECIPE.items()}
 # token instead of their caption, so that classifier-free guidance has an unconditional model to steer away
 # from. Recorded with each stage in the model file (meta["stages"][stage]["text_drop"]).
 TEXT_DROP = 0.1
+# With a recipe's text_jitter_cos under 1: the share of the denoising stages' captions turned away from their own
+# sentence vector to a cosine of text_jitter_cos or more (training/text_jitter.py), so that a prompt in words no
+# caption uses is read by the captions nearest to it
+TEXT_JITTER_SHARE = 0.5
 # HHI pair kinds (data/pairs/hhi.py): turn_to_face (pivot-turned standing clips, data/turns.py) is what made the ego
 # turn to a side-on partner: side-on approach scenario, 8 seeds, facing error 103 -> 28 deg at 3,000 steps (prior
 # alone 84-89). The same run gave 36 deg at 1,500 steps (4 seeds) and 52 at 4,500 although the held-out loss still
@@ -193,6 +197,7 @@ class WindowRecipe:
     rollout_skate: float = ROLLOUT_SKATE_WEIGHT   # planted toes sliding,
     rollout_glide: float = ROLLOUT_GLIDE_WEIGHT   # and pelvis glides
     rollout_arms: bool = True   # the ego's elbows and wrists count in the clearance charge (ROLLOUT_REACHING_JOINTS)
+    text_jitter_cos: float = 1.0   # captions turned to this cosine or more, TEXT_JITTER_SHARE of them (1: none)
 
     def as_meta(self) -> dict:
         return {k: _listed(v) for k, v in asdict(self).items()}
@@ -207,6 +212,10 @@ def _listed(v):
 KICKS_SLOWED = WindowRecipe(still_share=0.75, slow_walk_share=0.5, caption_balance=0.5, startup_stages=("prior",),
                             head_share_stages=("prior", "decoder"), head_shares=KICK_HEAD_SHARES,
                             decoder_shown_weight=0.0, slowed_walk_stages=("prior",))
+
+# The lowest cosine a turned caption keeps (text_jitter_cos): the held-out paraphrases lie 0.65-0.8 from their
+# nearest training phrasing in the shipped text table
+TEXT_JITTER_COS = 0.6
 
 # The anchored rollout recipe ("setoffs_rollout_anchored"), which its variants are derived from
 ROLLOUT_ANCHORED = WindowRecipe(setoff_share=0.5, hhi_guidance=6.0, hhi_rollout=100.0, rollout_seam=0.05,
@@ -294,6 +303,13 @@ WINDOW_RECIPES = {
     # 0.9 m/s with the tails, so the verb, not the destination, slows it (docs/HISTORY.md, "Path tails")
     "kicks_slowed_light_tails": replace(KICKS_SLOWED, slowed_walk_weight=SLOWED_WALK_WEIGHT_LIGHT,
                                         path_tail_share=PATH_TAIL_SHARE),
+    # the shipped prior's last windows and the reversed forward walks with their start-ups (data/reversals.py), meant
+    # to be averaged with the prior it starts from as the slowed walks were: alone, a reversed fine-tune walks
+    # backwards when told to and loses the jump paraphrases and standing still ("reversed" above)
+    "kicks_slowed_light_jitter": replace(KICKS_SLOWED, slowed_walk_weight=SLOWED_WALK_WEIGHT_LIGHT,
+                                         text_jitter_cos=TEXT_JITTER_COS),
+    "kicks_slowed_light_reversed": replace(KICKS_SLOWED, slowed_walk_weight=SLOWED_WALK_WEIGHT_LIGHT,
+                                           reversal_stages=("prior",)),
     # the kicks windows, for the prior slowed and reversed forward walks phrased more ways, and the prior held to its
     # starting output on the real clips' windows (ANCHORED_KINDS). Measured on val and not shipped: walking stays
     # straight and the literal backwards prompt walks backwards, but standing drifts and the run kind slows

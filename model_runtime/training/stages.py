@@ -25,8 +25,9 @@ from ..control import FPS, ControlConfig, foot_cost, glide_cost, seam_cost
 from ..joints import JOINT_INDEX
 from .recipe import (DECODER_FIRST_FRAMES, DECODER_SHOWN_WEIGHT, FWSR_OWN_SHARE, ROLLOUT_GLIDE_WEIGHT, ROLLOUT_MARGIN,
                      ROLLOUT_REACHING_JOINTS, ROLLOUT_ROWS, ROLLOUT_SEAM_WEIGHT, ROLLOUT_SKATE_WEIGHT, TEXT_DROP,
-                     WINDOW_RECIPES)
+                     TEXT_JITTER_SHARE, WINDOW_RECIPES)
 from .samples import Batch
+from .text_jitter import jitter_text
 
 STAGES = ("vae", "prior", "hhi", "hsi", "fwsr", "decoder")
 # A refinement of a trained model: a file without it is complete (files made before it existed have none).
@@ -136,7 +137,7 @@ class StageLoss(nn.Module):
                  hhi_rollout: float = 0.0,
                  rollout_costs: tuple[float, float, float] = (ROLLOUT_SEAM_WEIGHT, ROLLOUT_SKATE_WEIGHT,
                                                               ROLLOUT_GLIDE_WEIGHT),
-                 rollout_arms: bool = True) -> None:
+                 rollout_arms: bool = True, text_jitter_cos: float = 1.0) -> None:
         super().__init__()
         self.model, self.stage = model, stage
         self.shown_weight = shown_weight   # the decoder stage's weight of the motion as shown (WindowRecipe)
@@ -152,6 +153,7 @@ class StageLoss(nn.Module):
         # the starting file, frozen, whose output the windows it knew are held to (recipe.ANCHORED_KINDS)
         self.anchor = anchor.eval().requires_grad_(False) if anchor_weight > 0.0 else None
         self.anchor_weight = anchor_weight
+        self.text_jitter_cos = text_jitter_cos   # captions turned to this cosine or more (text_jitter.py; 1: off)
 
     def forward(self, batch: Batch, gen: torch.Generator) -> tuple[torch.Tensor, dict[str, float]]:
         return getattr(self, f"_{self.stage if self.stage in ('vae', 'fwsr', 'decoder') else 'denoise'}")(batch, gen)
@@ -193,7 +195,7 @@ class StageLoss(nn.Module):
         """The captions' embeddings and which of them are dropped (TEXT_DROP) for classifier-free guidance."""
         m = self.model
         dev = m.denoiser.null_text.device
-        emb = m.text_encoder.encode(b.text).to(dev)
+        emb = jitter_text(m.text_encoder.encode(b.text), self.text_jitter_cos, TEXT_JITTER_SHARE, gen).to(dev)
         drop = (torch.rand(len(b.text), generator=gen) < TEXT_DROP).to(dev)
         return emb, drop
 
