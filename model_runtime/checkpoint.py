@@ -19,6 +19,7 @@ import torch
 from .config import ModelConfig, resolve_config
 from .errors import ModelFileError
 from .model import ReMoGenModel, non_finite_weight
+from .text_blend import attach_prompt_blend
 
 FORMAT = "remogen"
 FORMAT_VERSION = 1
@@ -144,6 +145,7 @@ def load_model(path: str | os.PathLike | None = None, *, config: "str | ModelCon
                              "re-train or re-download the model")
     meta = payload.get("meta")
     model.meta = dict(meta) if isinstance(meta, dict) else {}
+    attach_prompt_blend(model)
     if warn_untrained:
         _warn_untrained(p, model.meta)
     return model.to(device).eval().set_precision(precision)

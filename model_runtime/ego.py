@@ -122,7 +122,7 @@ def cue_windows(egos: Sequence["Ego"], rots: Sequence[torch.Tensor], transes: Se
     """`Ego.cue_window` of several egos at once, each in its own frame: (B, n, 22, 3) points, (B, n) present.
 
     One array is filled and moved by one batched transform; per ego a handful of small torch calls cost more
-    than the maths (the same numbers as ego by ego: tests/test_group.py)."""
+    than the maths (the same numbers as ego by ego, to float rounding: tests/test_group.py)."""
     b = len(egos)
     hidden = [False] * b if hidden is None else hidden
     present = np.zeros((b, n), bool)

@@ -124,6 +124,9 @@ class ReMoGenModel(nn.Module):
         self.fwsr = FrameRefiner(cfg)
         self.schedule = CosineSchedule(cfg.diffusion_steps)
         self.text_encoder: TextEncoder = build_text_encoder(cfg.text)
+        # how the runtime reads prompts (text_blend.py; set from the model file's meta): None reads them as
+        # they are, as training does
+        self.prompt_blend: TextEncoder | None = None
         self.meta: dict = {}
         self.diffusion_dtype = torch.float32
         self._int8 = False   # the denoiser's linears were swapped for quantised ones (set_precision("int8"))
@@ -172,8 +175,15 @@ class ReMoGenModel(nn.Module):
         return self
 
     # ------------------------------------------------------------------ conditioning
+    def warm_text(self) -> None:
+        """Build now what reading a prompt needs (the blend's phrasing vectors, about 0.3 s), so that a live rig's
+        first prompt does not stall a frame."""
+        if self.prompt_blend is not None:
+            self.prompt_blend.warm()
+
     def encode_text(self, text: str) -> torch.Tensor:
-        return self.text_encoder.encode([text])
+        """A prompt's vector as the runtime reads it (blended toward the training phrasings when the file says so)."""
+        return (self.prompt_blend or self.text_encoder).encode([text])
 
     @staticmethod
     def text_warning(text: str) -> str | None:

@@ -148,6 +148,7 @@ def get_model(path: str | None = None, threads: int | None = None) -> Any:
         with warnings.catch_warnings(record=True) as caught:   # e.g. a partly trained model file
             warnings.simplefilter("always")
             _model_cache["model"] = rt.load_model(resolved or None)
+        _model_cache["model"].warm_text()   # at load, not at the first prompt of a live rig
         _model_cache["key"] = key
         _model_cache["note"] = " ".join(str(w.message) for w in caught)
         if _model_cache["note"]:

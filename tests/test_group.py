@@ -249,8 +249,9 @@ def test_a_segment_start_takes_more_seam_steps_where_an_ego_reacts_to_someone(ti
 
 
 def test_cue_windows_of_several_egos_equal_each_frame_moved_one_by_one():
-    """The batched cue windows give, bit for bit, each present frame moved into its ego's own frame alone, zeros
-    where a frame is missing or the cue is hidden."""
+    """The batched cue windows give each present frame moved into its ego's own frame alone (bit for bit on some
+    CPUs, within a unit in the last place on others, whose batched kernels sum in another order), zeros where a
+    frame is missing or the cue is hidden."""
     from model_runtime.ego import cue_windows
     from model_runtime.features import world_points_to_canonical
     from model_runtime.skeleton import yaw_matrix
@@ -273,4 +274,4 @@ def test_cue_windows_of_several_egos_equal_each_frame_moved_one_by_one():
                     assert not present[i, k] and not pts[i, k].any()
                 else:
                     want = world_points_to_canonical(torch.from_numpy(frame), rots[i], transes[i])
-                    assert present[i, k] and torch.equal(pts[i, k], want)
+                    assert present[i, k] and torch.allclose(pts[i, k], want, rtol=0.0, atol=1e-5)

@@ -45,3 +45,48 @@ def test_training_phrasings_hold_the_added_captions():
     ph = training_phrasings(["a person runs"])
     assert {"a person runs", "a person stands still", "a person walks slowly", "a person walks backwards"} <= set(ph)
     assert len(ph) == len(set(ph))
+
+
+def test_a_model_file_with_training_captions_reads_prompts_blended(tmp_path):
+    """The record survives save and load; the runtime's encode_text blends, training's text_encoder does not."""
+    from model_runtime import load_model, save_model
+    from model_runtime.text_blend import blend_meta
+    model = load_model(config="default", seed=0)
+    assert model.prompt_blend is None                      # no record: prompts are read as they are
+    path = save_model(model, tmp_path / "m.pt", meta={"prompt_blend": blend_meta(CAPTIONS, keep=0.8)})
+    loaded = load_model(path, warn_untrained=False)
+    assert loaded.meta["prompt_blend"] == {"keep": 0.8, "captions": sorted(CAPTIONS)}
+    text = "someone sprints across the room"
+    plain, read = loaded.text_encoder.encode([text])[0], loaded.encode_text(text)[0]
+    assert torch.equal(plain, model.text_encoder.encode([text])[0])
+    assert 0.9 < float(read @ plain) < 0.9999
+    assert float(loaded.encode_text("a person runs")[0] @ loaded.text_encoder.encode(["a person runs"])[0]) > 0.999
+
+
+def test_the_writer_keeps_the_weights_and_adds_the_train_split_captions(tmp_path):
+    from model_runtime import load_model, save_model
+    from model_runtime.text_blend import main
+    from synthetic import synthetic_library
+    lib = synthetic_library(20, 40)
+    lib.save(tmp_path / "lib.npz")
+    src = save_model(load_model(config="tiny", seed=0), tmp_path / "in.pt")
+    assert main(["--model", str(src), "--library", str(tmp_path / "lib.npz"), "--out", str(tmp_path / "out.pt"),
+                 "--keep", "0.7"]) == 0
+    a, b = load_model(src, warn_untrained=False), load_model(tmp_path / "out.pt", warn_untrained=False)
+    assert all(torch.equal(x, y) for x, y in zip(a.state_dict().values(), b.state_dict().values()))
+    assert b.meta["prompt_blend"]["captions"] == sorted({lib.captions[i] for i in lib.split("train")})
+    assert b.prompt_blend.keep == 0.7
+    with pytest.raises(SystemExit):
+        main(["--model", str(src), "--library", str(tmp_path / "lib.npz"), "--out", str(tmp_path / "x.pt"),
+              "--keep", "2"])
+    assert not (tmp_path / "x.pt").exists()
+
+
+def test_warming_builds_the_phrasing_vectors_once(base):
+    blend = PhrasingBlend(base, training_phrasings(CAPTIONS), keep=0.8)
+    assert blend._bank is None                       # nothing encoded when a model loads
+    blend.warm()
+    bank = blend._bank
+    assert bank is not None and bank.shape == (len(blend.phrasings), base.dim)
+    blend.encode(["someone sprints across the room"])
+    assert blend._bank is bank

@@ -9,6 +9,7 @@ import torch
 
 from model_runtime import load_model
 from model_runtime.train import train_stage
+from model_runtime.text_blend import PROMPT_BLEND_KEEP
 from model_runtime.training.recipe import TEXT_DROP
 from model_runtime.training.samples import SegmentSampler
 from synthetic import synthetic_library
@@ -59,6 +60,9 @@ def test_vae_and_prior_stages_train_resume_and_save(tmp_path, lib):
     # the caption dropout classifier-free guidance relies on is saved with the stage that trained with it
     assert model.meta["stages"]["prior"]["text_drop"] == TEXT_DROP and "text_drop" not in model.meta["stages"]["vae"]
     assert not torch.equal(model.stats.std, torch.ones(276))  # stats were fitted in the vae stage
+    # the prior's training captions go with it, for the runtime's reading of prompts (text_blend.py)
+    assert model.meta["prompt_blend"]["captions"] == sorted({lib.captions[i] for i in lib.split("train")})
+    assert model.prompt_blend is not None and model.prompt_blend.keep == PROMPT_BLEND_KEEP
 
 
 def test_a_prior_trained_again_continues_from_its_weights_and_records_them(tmp_path, lib):
@@ -614,7 +618,7 @@ def test_the_window_recipe_reaches_the_samplers_and_is_recorded(tmp_path, lib):
                       "slowed_walk_weight": 0.5,
                       "setoff_share": 0.0, "hhi_guidance": 0.0, "anchor": 0.0,
                       "hhi_rollout": 0.0, "rollout_seam": 1.0, "rollout_skate": 10.0, "rollout_glide": 100.0,
-                      "rollout_arms": True}
+                      "rollout_arms": True, "text_jitter_cos": 1.0}
     with pytest.raises(RemogenError, match="unknown window recipe 'odd'; use one of captured, balanced, reversed"):
         train_stage("prior", out, lib, config="tiny", steps=1, progress=False, windows="odd")
 

@@ -87,8 +87,8 @@ def main(argv: list[str] | None = None) -> int:
                          "family's kinds and the diversity measure; without it they are reported as absent")
     ap.add_argument("--prompt-blend", type=float, default=None, metavar="KEEP",
                     help="read each prompt as KEEP of its own vector and the rest its nearest training phrasing's "
-                         "(model_runtime/text_blend.py; needs --library, whose captions are the phrasings' source). "
-                         "An evaluation option, not the runtime's default")
+                         "(model_runtime/text_blend.py), in place of the model file's setting; 1 reads prompts as "
+                         "they are. A file that keeps no training captions takes them from --library's train split")
     ap.add_argument("--diversity", action="store_true",
                     help=f"also measure takes that differ: the {len(DIVERSITY_PROMPTS)} diversity prompts "
                          "rolled out with --diversity-seeds seeds each (100 frames a take), pose distance "
@@ -122,11 +122,15 @@ def main(argv: list[str] | None = None) -> int:
             from ..data.library import ClipLibrary
             library = ClipLibrary.load(args.library)
         if args.prompt_blend is not None:
-            if library is None:
-                ap.error("--prompt-blend needs --library: its captions give the phrasings to blend toward")
-            from ..text_blend import PhrasingBlend, training_phrasings
-            model.text_encoder = PhrasingBlend(model.text_encoder, training_phrasings(list(library.captions)),
-                                               keep=args.prompt_blend)
+            from ..text_blend import attach_prompt_blend, blend_meta
+            if not 0.0 <= args.prompt_blend <= 1.0:
+                ap.error(f"--prompt-blend {args.prompt_blend} is outside 0-1")
+            if "prompt_blend" not in model.meta:
+                if library is None:
+                    ap.error("--prompt-blend: the model file keeps no training captions; give --library, the "
+                             "library its prior trained on")
+                model.meta["prompt_blend"] = blend_meta([library.captions[i] for i in library.split("train")])
+            attach_prompt_blend(model, keep=args.prompt_blend)
     except RemogenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -139,8 +143,7 @@ def main(argv: list[str] | None = None) -> int:
                        **({"alphas": tuple(alphas)} if alphas else {}), control_config=control_config, **switches)
     report.update(switches)
     report.update(final_guidance)
-    if args.prompt_blend is not None:
-        report["prompt_blend"] = args.prompt_blend
+    report["prompt_blend"] = model.prompt_blend.keep if model.prompt_blend is not None else None
     if args.control_set:
         report["control_config"] = dict(kv.split("=", 1) for kv in args.control_set)
     if args.prior_only:

@@ -23,6 +23,7 @@ from ..devices import device_name
 from ..errors import RemogenError
 from ..model import ReMoGenModel
 from .ema import EMA
+from ..text_blend import PROMPT_BLEND_KEEP, blend_meta
 from .recipe import DEFAULT_STEPS, RECIPE, TEXT_DROP, WINDOW_RECIPES
 from .report import StageRun, say, validation_history
 from .prefetch import batch_stream
@@ -176,6 +177,9 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
         sources = set(lib.sources) | set(meta.get("sources", []))
         meta.update({"trained": True, "stages": stages, "sources": sorted(sources),
                      "non_commercial": non_commercial(sources, meta)})
+        if stage == "prior":   # the runtime reads prompts partly by the phrasings this prior trained on
+            keep = meta.get("prompt_blend", {}).get("keep", PROMPT_BLEND_KEEP)
+            meta["prompt_blend"] = blend_meta([lib.captions[i] for i in lib.split("train")], keep)
         return meta
 
     def with_own_sensitivity(m: ReMoGenModel) -> ReMoGenModel:
