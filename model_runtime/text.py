@@ -76,6 +76,10 @@ class CachedEncoder:
     def encode(self, texts: list[str]) -> torch.Tensor:
         return torch.stack([self.encode_one(t) for t in texts])
 
+    def encode_uncached(self, texts: list[str]) -> torch.Tensor:
+        """The same vectors, leaving the cache as it was (for a one-off batch of thousands of sentences)."""
+        return torch.stack([self._embed(t) for t in texts])
+
 
 class HashedNgramEncoder(CachedEncoder):
     """Deterministic subword-hashing sentence encoder (no weights on disk)."""

@@ -90,3 +90,13 @@ def test_warming_builds_the_phrasing_vectors_once(base):
     assert bank is not None and bank.shape == (len(blend.phrasings), base.dim)
     blend.encode(["someone sprints across the room"])
     assert blend._bank is bank
+
+
+def test_the_phrasings_do_not_fill_the_prompt_cache(base):
+    """Thousands of phrasings would push a live rig's prompts out of the encoder's cache."""
+    fresh = StaticSubwordEncoder(load_table())
+    fresh.encode(["a person waves"])
+    blend = PhrasingBlend(fresh, training_phrasings(CAPTIONS), keep=0.8)
+    blend.warm()
+    assert list(fresh._cache) == ["a person waves"]
+    assert torch.equal(fresh.encode_uncached(["a person runs"])[0], base.encode(["a person runs"])[0])
