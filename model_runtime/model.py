@@ -176,7 +176,7 @@ class ReMoGenModel(nn.Module):
 
     # ------------------------------------------------------------------ conditioning
     def warm_text(self) -> None:
-        """Build now what reading a prompt needs (the blend's phrasing vectors, about 0.3 s), so that a live rig's
+        """Build now what reading a prompt needs (the blend's phrasing vectors, about 0.45 s), so that a live rig's
         first prompt does not stall a frame."""
         if self.prompt_blend is not None:
             self.prompt_blend.warm()
