@@ -35,7 +35,8 @@ PROMPT_BLEND_KEEP = 0.8
 class PhrasingBlend(CachedEncoder):
     """`base`'s vector of a prompt, `keep` of it and the rest the softmax-weighted mean of its nearest
     phrasings' vectors, normalised. A prompt the base encoder knows no word of stays zero (the unknown prompt).
-    The phrasings are encoded at the first prompt, not when a model loads."""
+    The phrasings are encoded by warm() (model.warm_text(), as the Blender extension calls at load) or else at the
+    first prompt, before any frame of it plays."""
 
     def __init__(self, base: TextEncoder, phrasings: list[str], keep: float,
                  top: int = BLEND_TOP, temperature: float = BLEND_TEMPERATURE) -> None:
@@ -54,7 +55,7 @@ class PhrasingBlend(CachedEncoder):
             encode = getattr(self.base, "encode_uncached", self.base.encode)   # the prompts' cache stays the prompts'
             self._bank = torch.nn.functional.normalize(encode(self.phrasings).float(), dim=-1)
             # Tokenising thousands of sentences leaves Python's collector owing a full pass, which otherwise falls
-            # on a later frame (measured: one 63 ms frame in 300): take it now, while the model loads
+            # on a played frame (measured: one 63 ms frame in 300): take it now, with the encoding
             gc.collect()
         return self._bank
 
