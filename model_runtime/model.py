@@ -181,6 +181,11 @@ class ReMoGenModel(nn.Module):
         if self.prompt_blend is not None:
             self.prompt_blend.warm()
 
+    def nearest_phrasing(self, text: str) -> tuple[str, float] | None:
+        """The training phrasing a prompt leans toward and its cosine with the prompt (text_blend.py), to show a
+        user how a prompt is read; None when the file reads prompts as they are, or for a prompt of no known word."""
+        return None if self.prompt_blend is None else self.prompt_blend.nearest(text)
+
     def encode_text(self, text: str) -> torch.Tensor:
         """A prompt's vector as the runtime reads it (blended toward the training phrasings when the file says so)."""
         return (self.prompt_blend or self.text_encoder).encode([text])

@@ -63,6 +63,15 @@ class PhrasingBlend(CachedEncoder):
         """Encode the phrasings now rather than at the first prompt."""
         _ = self.bank
 
+    def nearest(self, text: str) -> tuple[str, float] | None:
+        """The training phrasing nearest the prompt as written, and their cosine; None for the unknown prompt."""
+        own = self.base.encode([text])[0].float()
+        if float(own.norm()) == 0.0:
+            return None
+        cos = self.bank @ own
+        i = int(cos.argmax())
+        return self.phrasings[i], float(cos[i])
+
     def _embed(self, text: str) -> torch.Tensor:
         own = self.base.encode([text])[0]
         if self.keep >= 1.0 or float(own.norm()) == 0.0:

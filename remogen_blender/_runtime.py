@@ -156,6 +156,11 @@ def get_model(path: str | None = None, threads: int | None = None) -> Any:
     return _model_cache["model"]
 
 
+def loaded_model():
+    """The model already loaded for the live rig or a bake, or None; never loads one (the panel draws often)."""
+    return _model_cache["model"]
+
+
 def model_note() -> str:
     """A warning from loading the current model (empty when it loaded cleanly), for the panel."""
     return _model_cache["note"]

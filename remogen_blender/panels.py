@@ -52,6 +52,30 @@ class REMOGEN_UL_egos(bpy.types.UIList):
         split.label(text=item.text)
 
 
+# (model id, prompt) -> the note under the prompt: the panel redraws often, and a lookup costs about 1.6 ms
+_NEAREST_NOTES: dict[tuple[int, str], str] = {}
+NEAREST_NOTES_KEPT = 64
+# A prompt this close to a training phrasing is read as written: no note
+NEAREST_NOTE_BELOW = 0.999
+
+
+def nearest_phrasing_note(text: str) -> str:
+    """'Closest training phrasing: "someone is running" (0.66)' under a prompt in words the loaded model was not
+    trained on, so the animator sees which motion it leans toward; empty without a loaded model, a prompt or the
+    model file's phrasing record."""
+    model = _runtime.loaded_model()
+    if model is None or not text.strip():
+        return ""
+    key = (id(model), text)
+    if key not in _NEAREST_NOTES:
+        near = model.nearest_phrasing(text)
+        _NEAREST_NOTES[key] = (f'Closest training phrasing: "{near[0]}" ({near[1]:.2f})'
+                               if near is not None and near[1] < NEAREST_NOTE_BELOW else "")
+        if len(_NEAREST_NOTES) > NEAREST_NOTES_KEPT:
+            _NEAREST_NOTES.pop(next(iter(_NEAREST_NOTES)))
+    return _NEAREST_NOTES[key]
+
+
 def draw_ego_settings(layout: bpy.types.UILayout, src) -> bpy.types.UILayout:
     """The settings of one ego (scene.remogen for the first, an entry of the ego list for the others); returns
     the row of toggles, for the first ego's scene-wide toggles to join."""
@@ -60,6 +84,10 @@ def draw_ego_settings(layout: bpy.types.UILayout, src) -> bpy.types.UILayout:
     text_note = _runtime.api().prompt_warning(src.text)   # torch-free: shown before PyTorch is installed too
     if text_note:
         col.label(text=text_note, icon='ERROR')
+    else:
+        near = nearest_phrasing_note(src.text)
+        if near:
+            col.label(text=near, icon='INFO')
     col.prop(src, "alpha_hhi", slider=True)
     col.prop(src, "alpha_hsi", slider=True)
     col.prop(src, "guidance")

@@ -100,3 +100,16 @@ def test_the_phrasings_do_not_fill_the_prompt_cache(base):
     blend.warm()
     assert list(fresh._cache) == ["a person waves"]
     assert torch.equal(fresh.encode_uncached(["a person runs"])[0], base.encode(["a person runs"])[0])
+
+
+def test_the_model_names_the_phrasing_a_prompt_leans_toward(tmp_path):
+    from model_runtime import load_model, save_model
+    from model_runtime.text_blend import blend_meta
+    plain = load_model(config="default", seed=0)
+    assert plain.nearest_phrasing("someone sprints across the room") is None      # no record: read as written
+    path = save_model(plain, tmp_path / "m.pt", meta={"prompt_blend": blend_meta(CAPTIONS)})
+    model = load_model(path, warn_untrained=False)
+    phrasing, cos = model.nearest_phrasing("someone sprints across the room")
+    assert phrasing in training_phrasings(CAPTIONS) and "run" in phrasing and 0.5 < cos < 0.9
+    assert model.nearest_phrasing("a person runs")[1] > 0.999
+    assert model.nearest_phrasing("\u4f60\u597d") is None

@@ -83,6 +83,30 @@ def test_panels_draw(fresh):
     REMOGEN_UL_bone_map.draw_item(None, fresh, FakeLayout([]), st, st.bone_map[0], 0, st, "bone_map_index")
 
 
+def test_the_panel_names_the_training_phrasing_a_prompt_leans_toward(fresh, monkeypatch):
+    """Under a prompt in other words than the captions, the closest training phrasing the loaded model reads it
+    by; none for a caption's own words, none before a model is loaded (drawing never loads one)."""
+    from model_runtime import load_model
+    from model_runtime.text_blend import attach_prompt_blend, blend_meta
+    from remogen_blender import _runtime, panels
+    st = fresh.scene.remogen
+
+    def labels():
+        return [kw.get("text", "") for name, a, kw in _draw(panels.REMOGEN_PT_main, fresh) if name == "label"]
+
+    monkeypatch.setitem(_runtime._model_cache, "model", None)
+    st.text = "someone keeps running fast"    # the tiny preset's hashed encoder matches words, not meanings
+    assert not any(t.startswith("Closest training phrasing") for t in labels())
+    model = load_model(config="tiny", seed=0)
+    model.meta["prompt_blend"] = blend_meta(["a person runs", "a person walks forward"])
+    attach_prompt_blend(model)
+    monkeypatch.setitem(_runtime._model_cache, "model", model)
+    shown = [t for t in labels() if t.startswith("Closest training phrasing")]
+    assert len(shown) == 1 and "run" in shown[0]
+    st.text = "a person runs"
+    assert not any(t.startswith("Closest training phrasing") for t in labels())
+
+
 def test_bone_from_active(fresh):
     import scenes
     scenes.demo_scene(fresh)
