@@ -23,6 +23,7 @@ import sys
 import torch
 
 from .cli_help import HelpFormatter
+from .errors import ModelFileError
 from .text import CachedEncoder, TextEncoder
 
 BLEND_TOP = 16            # phrasings the softmax weighs
@@ -101,11 +102,16 @@ def blend_meta(train_captions: list[str], keep: float = PROMPT_BLEND_KEEP) -> di
 def attach_prompt_blend(model, keep: float | None = None) -> None:
     """Set model.prompt_blend from its meta["prompt_blend"] (None without one); `keep` overrides the file's."""
     record = model.meta.get("prompt_blend") if isinstance(model.meta, dict) else None
-    if not isinstance(record, dict) or not record.get("captions"):
+    if record is None:
         model.prompt_blend = None
         return
-    share = float(record.get("keep", PROMPT_BLEND_KEEP)) if keep is None else float(keep)
-    model.prompt_blend = PhrasingBlend(model.text_encoder, training_phrasings(list(record["captions"])), share)
+    captions = record.get("captions") if isinstance(record, dict) else None
+    share = record.get("keep", PROMPT_BLEND_KEEP) if keep is None and isinstance(record, dict) else keep
+    if (not isinstance(captions, list) or not captions or not all(isinstance(c, str) for c in captions)
+            or isinstance(share, bool) or not isinstance(share, (int, float)) or not 0.0 <= share <= 1.0):
+        raise ModelFileError("the model file's meta['prompt_blend'] is damaged (it needs 'captions', a list of "
+                             "strings, and 'keep', 0-1); write it again with python -m model_runtime.text_blend")
+    model.prompt_blend = PhrasingBlend(model.text_encoder, training_phrasings(captions), float(share))
 
 
 def main(argv: list[str] | None = None) -> int:

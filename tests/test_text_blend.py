@@ -113,3 +113,13 @@ def test_the_model_names_the_phrasing_a_prompt_leans_toward(tmp_path):
     assert phrasing in training_phrasings(CAPTIONS) and "run" in phrasing and 0.5 < cos < 0.9
     assert model.nearest_phrasing("a person runs")[1] > 0.999
     assert model.nearest_phrasing("\u4f60\u597d") is None
+
+
+@pytest.mark.parametrize("record", [{"keep": 0.8}, {"keep": 0.8, "captions": [1, 2]}, {"keep": 2.0, "captions": ["a"]},
+                                    {"keep": "x", "captions": ["a"]}, ["a person runs"]])
+def test_a_damaged_record_is_refused_in_one_line(tmp_path, record):
+    from model_runtime import load_model, save_model
+    from model_runtime.errors import ModelFileError
+    path = save_model(load_model(config="tiny", seed=0), tmp_path / "m.pt", meta={"prompt_blend": record})
+    with pytest.raises(ModelFileError, match=r"meta\['prompt_blend'\] is damaged"):
+        load_model(path, warn_untrained=False)
