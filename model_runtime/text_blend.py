@@ -47,7 +47,8 @@ class PhrasingBlend(CachedEncoder):
         if not phrasings:
             raise ValueError("no phrasings to blend toward; give the captions the model was trained on")
         self.base, self.dim, self.keep, self.temperature = base, base.dim, keep, temperature
-        self.phrasings, self.top = sorted(set(phrasings)), min(top, len(set(phrasings)))
+        self.phrasings = sorted(set(phrasings))
+        self.top = min(top, len(self.phrasings))
         self._bank: torch.Tensor | None = None
 
     @property
@@ -99,6 +100,11 @@ def blend_meta(train_captions: list[str], keep: float = PROMPT_BLEND_KEEP) -> di
     return {"keep": float(keep), "captions": sorted(set(train_captions))}
 
 
+def library_blend_meta(lib, keep: float = PROMPT_BLEND_KEEP) -> dict:
+    """blend_meta of a clip library's train split: the captions a prior trained on it has seen."""
+    return blend_meta([lib.captions[i] for i in lib.split("train")], keep)
+
+
 def attach_prompt_blend(model, keep: float | None = None) -> None:
     """Set model.prompt_blend from its meta["prompt_blend"] (None without one); `keep` overrides the file's."""
     record = model.meta.get("prompt_blend") if isinstance(model.meta, dict) else None
@@ -134,10 +140,10 @@ def main(argv: list[str] | None = None) -> int:
     except RemogenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    captions = [lib.captions[i] for i in lib.split("train")]
-    save_model(model, args.out, meta={"prompt_blend": blend_meta(captions, args.keep)})
+    record = library_blend_meta(lib, args.keep)
+    save_model(model, args.out, meta={"prompt_blend": record})
     print(f"wrote {args.out}: prompts keep {args.keep:g} of their own vector, blended toward the phrasings of "
-          f"{len(set(captions))} training captions")
+          f"{len(record['captions'])} training captions")
     return 0
 
 

@@ -122,14 +122,14 @@ def main(argv: list[str] | None = None) -> int:
             from ..data.library import ClipLibrary
             library = ClipLibrary.load(args.library)
         if args.prompt_blend is not None:
-            from ..text_blend import attach_prompt_blend, blend_meta
+            from ..text_blend import attach_prompt_blend, library_blend_meta
             if not 0.0 <= args.prompt_blend <= 1.0:
                 ap.error(f"--prompt-blend {args.prompt_blend} is outside 0-1")
             if "prompt_blend" not in model.meta:
                 if library is None:
                     ap.error("--prompt-blend: the model file keeps no training captions; give --library, the "
                              "library its prior trained on")
-                model.meta["prompt_blend"] = blend_meta([library.captions[i] for i in library.split("train")])
+                model.meta["prompt_blend"] = library_blend_meta(library)
             attach_prompt_blend(model, keep=args.prompt_blend)
     except RemogenError as exc:
         print(f"error: {exc}", file=sys.stderr)

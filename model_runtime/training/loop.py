@@ -22,8 +22,8 @@ from ..data.library import ClipLibrary, non_commercial
 from ..devices import device_name
 from ..errors import RemogenError
 from ..model import ReMoGenModel
+from ..text_blend import PROMPT_BLEND_KEEP, library_blend_meta
 from .ema import EMA
-from ..text_blend import PROMPT_BLEND_KEEP, blend_meta
 from .recipe import DEFAULT_STEPS, RECIPE, TEXT_DROP, WINDOW_RECIPES
 from .report import StageRun, say, validation_history
 from .prefetch import batch_stream
@@ -179,7 +179,7 @@ def train_stage(stage: str, out: Path, lib: ClipLibrary, *, config: str = "defau
                      "non_commercial": non_commercial(sources, meta)})
         if stage == "prior":   # the runtime reads prompts partly by the phrasings this prior trained on
             keep = meta.get("prompt_blend", {}).get("keep", PROMPT_BLEND_KEEP)
-            meta["prompt_blend"] = blend_meta([lib.captions[i] for i in lib.split("train")], keep)
+            meta["prompt_blend"] = library_blend_meta(lib, keep)
         return meta
 
     def with_own_sensitivity(m: ReMoGenModel) -> ReMoGenModel:

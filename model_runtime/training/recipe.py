@@ -303,15 +303,15 @@ WINDOW_RECIPES = {
     # 0.9 m/s with the tails, so the verb, not the destination, slows it (docs/HISTORY.md, "Path tails")
     "kicks_slowed_light_tails": replace(KICKS_SLOWED, slowed_walk_weight=SLOWED_WALK_WEIGHT_LIGHT,
                                         path_tail_share=PATH_TAIL_SHARE),
-    # the shipped prior's last windows and the reversed forward walks with their start-ups (data/reversals.py), to be
-    # averaged with the prior it starts from as the slowed walks were. Measured on val and not shipped: averaged, the
-    # ego barely moves when told to walk backwards (86-97 deg, 0.25 m/s); alone it walks backwards (159 deg) and
-    # loses the slow-walk kind (docs/HISTORY.md, "Two more tries at the text kinds on the prior")
     # the shipped prior's last windows with half the captions turned to a cosine of TEXT_JITTER_COS or more
     # (training/text_jitter.py), so that a paraphrase off every caption is read by its nearest one. Measured on val
     # and not shipped: no failing paraphrase moves (docs/HISTORY.md, "Two more tries at the text kinds on the prior")
     "kicks_slowed_light_jitter": replace(KICKS_SLOWED, slowed_walk_weight=SLOWED_WALK_WEIGHT_LIGHT,
                                          text_jitter_cos=TEXT_JITTER_COS),
+    # the shipped prior's last windows and the reversed forward walks with their start-ups (data/reversals.py), to be
+    # averaged with the prior it starts from as the slowed walks were. Measured on val and not shipped: averaged, the
+    # ego barely moves when told to walk backwards (86-97 deg, 0.25 m/s); alone it walks backwards (159 deg) and
+    # loses the slow-walk kind (docs/HISTORY.md, "Two more tries at the text kinds on the prior")
     "kicks_slowed_light_reversed": replace(KICKS_SLOWED, slowed_walk_weight=SLOWED_WALK_WEIGHT_LIGHT,
                                            reversal_stages=("prior",)),
     # the kicks windows, for the prior slowed and reversed forward walks phrased more ways, and the prior held to its
